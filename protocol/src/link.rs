@@ -1,0 +1,364 @@
+//! Sessions, the handshake and replay protection, on top of [`frame`](crate::frame).
+//!
+//! Every node picks a fresh 32-bit *session* at boot (robots: a boot counter kept in
+//! flash; the base station: a random number). Every frame's tag covers the sender's
+//! session, so frames from an earlier boot never verify again. A receiver learns a peer's
+//! session only from a `Welcome` that answers its own `Hello` nonce, and the `Welcome` also
+//! fixes the floor of the peer's sequence numbers. After that each stream (the peer's
+//! broadcasts, the peer's unicasts to us) must strictly increase: duplicates, replays and
+//! late (reordered) frames are refused. A control link wants the newest state only.
+//!
+//! - A robot that reboots knows no session: it accepts nothing until the base station
+//!   answers its fresh nonce, and the answer's sequence floor shuts out recorded frames.
+//! - A restarted base station has a new session: robots reject its frames (`bad_tag`),
+//!   notice the silence after [`Timing::relink_after_ms`] (or its `Hello`), challenge
+//!   it, and accept it again. Nothing an attacker recorded earlier verifies.
+//!
+//! See `docs/protocol.md` for the threat model.
+
+use heapless::Vec;
+
+use crate::auth::FleetKey;
+use crate::frame::{self, Address, EncodeError, Header};
+use crate::messages::{Hello, Message, Welcome};
+use crate::{Reject, RejectCounts, PROTOCOL_VERSION};
+
+/// When to (re)challenge a peer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Timing {
+    /// A peer silent (no accepted frame) this long is challenged again.
+    pub relink_after_ms: u32,
+    /// At most one `Hello` per peer per this period; also the least time between two
+    /// answers to one peer's `Hello`s (so replayed challenges cannot make us flood).
+    pub challenge_every_ms: u32,
+}
+
+impl Default for Timing {
+    fn default() -> Self {
+        Self {
+            relink_after_ms: 1000,
+            challenge_every_ms: 300,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Stream {
+    last: Option<u32>,
+}
+
+impl Stream {
+    /// Accepts a strictly newer sequence number; returns how many were skipped.
+    fn advance(&mut self, seq: u32) -> Result<u32, Reject> {
+        match self.last {
+            Some(last) if seq <= last => Err(Reject::Replay),
+            Some(last) => {
+                self.last = Some(seq);
+                Ok(seq - last - 1)
+            }
+            None => Err(Reject::UnknownSession),
+        }
+    }
+}
+
+/// What this link knows about one peer.
+#[derive(Debug, Clone)]
+pub struct Peer {
+    pub address: Address,
+    session: Option<u32>,
+    tx_seq: u32,
+    rx_unicast: Stream,
+    rx_broadcast: Stream,
+    challenge: Option<(u64, u32)>,
+    last_hello_ms: Option<u32>,
+    last_answer_ms: Option<u32>,
+    /// Our clock when the last frame from this peer was accepted.
+    pub last_rx_ms: Option<u32>,
+    /// Peer clock minus our clock, from the handshake's round trip.
+    pub clock_offset_ms: Option<i32>,
+    pub accepted: u32,
+    pub lost: u32,
+    /// Rejected frames whose (unverified) header named this peer as sender.
+    pub rejects: RejectCounts,
+}
+
+impl Peer {
+    fn new(address: Address) -> Self {
+        Self {
+            address,
+            session: None,
+            tx_seq: 0,
+            rx_unicast: Stream::default(),
+            rx_broadcast: Stream::default(),
+            challenge: None,
+            last_hello_ms: None,
+            last_answer_ms: None,
+            last_rx_ms: None,
+            clock_offset_ms: None,
+            accepted: 0,
+            lost: 0,
+            rejects: RejectCounts::default(),
+        }
+    }
+
+    /// True once a handshake has given us the peer's session.
+    pub fn is_linked(&self) -> bool {
+        self.session.is_some()
+    }
+
+    fn silent_for(&self, now_ms: u32, ms: u32) -> bool {
+        self.last_rx_ms.is_none_or(|t| now_ms.wrapping_sub(t) >= ms)
+    }
+}
+
+/// What an accepted frame means for the caller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Event {
+    /// An authenticated, fresh application message.
+    Message { header: Header, message: Message },
+    /// A peer asks for our session: answer with [`Link::answer`].
+    Challenged { from: Address, nonce: u64 },
+    /// A peer answered our challenge: its frames are accepted from now on.
+    Linked { peer: Address },
+    /// A frame for another node, or a `Hello` answered too recently.
+    Ignored,
+}
+
+/// Link-wide counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinkStats {
+    pub accepted: u32,
+    pub lost: u32,
+    pub ignored: u32,
+    pub rejects: RejectCounts,
+}
+
+/// One node's end of the radio link, with up to `PEERS` peers. No heap, time passed in.
+pub struct Link<const PEERS: usize> {
+    me: Address,
+    key: FleetKey,
+    session: u32,
+    next_nonce: u64,
+    broadcast_seq: u32,
+    timing: Timing,
+    peers: Vec<Peer, PEERS>,
+    stats: LinkStats,
+}
+
+impl<const PEERS: usize> Link<PEERS> {
+    /// `session` must differ at every boot; `nonce_base` must never repeat a nonce this
+    /// node used before (robots: `boot_count << 32`; the base station: random).
+    pub fn new(me: Address, key: FleetKey, session: u32, nonce_base: u64, timing: Timing) -> Self {
+        Self {
+            me,
+            key,
+            session,
+            next_nonce: nonce_base,
+            broadcast_seq: 0,
+            timing,
+            peers: Vec::new(),
+            stats: LinkStats::default(),
+        }
+    }
+
+    pub fn address(&self) -> Address {
+        self.me
+    }
+
+    pub fn session(&self) -> u32 {
+        self.session
+    }
+
+    /// Adds a peer; returns false when the table is full. Idempotent.
+    pub fn add_peer(&mut self, address: Address) -> bool {
+        match self.peers.binary_search_by(|p| p.address.cmp(&address)) {
+            Ok(_) => true,
+            Err(at) => self.peers.insert(at, Peer::new(address)).is_ok(),
+        }
+    }
+
+    pub fn peer(&self, address: Address) -> Option<&Peer> {
+        self.index(address).map(|i| &self.peers[i])
+    }
+
+    pub fn peers(&self) -> &[Peer] {
+        &self.peers
+    }
+
+    pub fn stats(&self) -> &LinkStats {
+        &self.stats
+    }
+
+    /// Counts a frame the byte decoder already dropped (bad COBS, too long).
+    pub fn count_reject(&mut self, reason: Reject) {
+        self.stats.rejects.count(reason);
+    }
+
+    fn index(&self, address: Address) -> Option<usize> {
+        self.peers
+            .binary_search_by(|p| p.address.cmp(&address))
+            .ok()
+    }
+
+    /// Seals `message` for `to` (a peer, or [`Address::Broadcast`]) into `out`.
+    pub fn send(
+        &mut self,
+        to: Address,
+        now_ms: u32,
+        message: &Message,
+        out: &mut [u8],
+    ) -> Result<usize, EncodeError> {
+        let seq = if to == Address::Broadcast {
+            self.broadcast_seq = self.broadcast_seq.wrapping_add(1);
+            self.broadcast_seq
+        } else {
+            let i = self.index(to).ok_or(EncodeError::UnknownPeer)?;
+            let peer = &mut self.peers[i];
+            peer.tx_seq = peer.tx_seq.wrapping_add(1);
+            peer.tx_seq
+        };
+        let header = Header {
+            version: PROTOCOL_VERSION,
+            id: message.id(),
+            from: self.me,
+            to,
+            seq,
+            time_ms: now_ms,
+        };
+        frame::seal(&self.key, self.session, &header, message, out)
+    }
+
+    /// Sends a fresh challenge to `to`.
+    pub fn challenge(
+        &mut self,
+        to: Address,
+        now_ms: u32,
+        out: &mut [u8],
+    ) -> Result<usize, EncodeError> {
+        let i = self.index(to).ok_or(EncodeError::UnknownPeer)?;
+        let nonce = self.next_nonce;
+        self.next_nonce = self.next_nonce.wrapping_add(1);
+        self.peers[i].challenge = Some((nonce, now_ms));
+        self.peers[i].last_hello_ms = Some(now_ms);
+        self.send(to, now_ms, &Message::Hello(Hello { nonce }), out)
+    }
+
+    /// The next peer that should be challenged now (unlinked, or silent too long, and
+    /// not challenged within [`Timing::challenge_every_ms`]), if any.
+    pub fn due_challenge(&self, now_ms: u32) -> Option<Address> {
+        let t = self.timing;
+        self.peers
+            .iter()
+            .find(|p| {
+                let stale = !p.is_linked() || p.silent_for(now_ms, t.relink_after_ms);
+                let quiet = p
+                    .last_hello_ms
+                    .is_none_or(|h| now_ms.wrapping_sub(h) >= t.challenge_every_ms);
+                stale && quiet
+            })
+            .map(|p| p.address)
+    }
+
+    /// Answers a peer's challenge with our session.
+    pub fn answer(
+        &mut self,
+        to: Address,
+        nonce: u64,
+        now_ms: u32,
+        out: &mut [u8],
+    ) -> Result<usize, EncodeError> {
+        let welcome = Welcome {
+            nonce,
+            session: self.session,
+            broadcast_seq: self.broadcast_seq,
+        };
+        self.send(to, now_ms, &Message::Welcome(welcome), out)
+    }
+
+    /// Authenticates one frame from the byte decoder and updates the link state.
+    pub fn receive(&mut self, frame: Result<&[u8], Reject>, now_ms: u32) -> Result<Event, Reject> {
+        let result = frame.and_then(|raw| self.accept(raw, now_ms));
+        match &result {
+            Ok(Event::Ignored) => self.stats.ignored = self.stats.ignored.saturating_add(1),
+            Ok(_) => self.stats.accepted = self.stats.accepted.saturating_add(1),
+            Err(reason) => self.stats.rejects.count(*reason),
+        }
+        result
+    }
+
+    fn accept(&mut self, raw: &[u8], now_ms: u32) -> Result<Event, Reject> {
+        let header = frame::peek_header(raw)?;
+        if header.to != self.me && header.to != Address::Broadcast {
+            return Ok(Event::Ignored);
+        }
+        let i = self.index(header.from).ok_or(Reject::UnknownSession)?;
+        let result = self.accept_from(i, raw, now_ms);
+        if let Err(reason) = result {
+            self.peers[i].rejects.count(reason);
+        }
+        result
+    }
+
+    fn accept_from(&mut self, i: usize, raw: &[u8], now_ms: u32) -> Result<Event, Reject> {
+        let session = self.peers[i].session;
+        let (header, message) =
+            frame::open(&self.key, raw, |_| session.ok_or(Reject::UnknownSession))?;
+        let timing = self.timing;
+        let peer = &mut self.peers[i];
+        match message {
+            Message::Hello(hello) => {
+                // Unbound to a session, so possibly replayed: answer, but not too often.
+                let recent = peer
+                    .last_answer_ms
+                    .is_some_and(|t| now_ms.wrapping_sub(t) < timing.challenge_every_ms);
+                if recent {
+                    return Ok(Event::Ignored);
+                }
+                peer.last_answer_ms = Some(now_ms);
+                // A peer that lost our session may have restarted: make sure we have its
+                // current one too.
+                if peer.silent_for(now_ms, timing.challenge_every_ms) {
+                    peer.last_rx_ms = None;
+                }
+                Ok(Event::Challenged {
+                    from: header.from,
+                    nonce: hello.nonce,
+                })
+            }
+            Message::Welcome(welcome) => {
+                let Some((nonce, sent_ms)) = peer.challenge else {
+                    return Err(Reject::Replay);
+                };
+                if welcome.nonce != nonce || header.to != self.me {
+                    return Err(Reject::Replay);
+                }
+                peer.challenge = None;
+                peer.session = Some(welcome.session);
+                peer.rx_unicast.last = Some(header.seq);
+                peer.rx_broadcast.last = Some(welcome.broadcast_seq);
+                peer.last_rx_ms = Some(now_ms);
+                // NTP's estimate: the answer left halfway through the round trip.
+                let mid = sent_ms as i64 + (now_ms.wrapping_sub(sent_ms) / 2) as i64;
+                peer.clock_offset_ms = Some((header.time_ms as i64 - mid) as i32);
+                peer.accepted = peer.accepted.saturating_add(1);
+                Ok(Event::Linked { peer: header.from })
+            }
+            _ => {
+                let stream = if header.to == Address::Broadcast {
+                    &mut peer.rx_broadcast
+                } else {
+                    &mut peer.rx_unicast
+                };
+                let skipped = stream.advance(header.seq)?;
+                peer.lost = peer.lost.saturating_add(skipped);
+                peer.accepted = peer.accepted.saturating_add(1);
+                peer.last_rx_ms = Some(now_ms);
+                self.stats.lost = self.stats.lost.saturating_add(skipped);
+                Ok(Event::Message { header, message })
+            }
+        }
+    }
+}

@@ -1,0 +1,267 @@
+//! Sessions, handshake and replay protection between a base station and robots.
+
+use protocol::link::{Event, Link, Timing};
+use protocol::messages::*;
+use protocol::{Address, FleetKey, FrameDecoder, Reject, MAX_WIRE};
+
+type Base = Link<8>;
+type Robot = Link<1>;
+
+fn key() -> FleetKey {
+    FleetKey::from_bytes(&[9; 32])
+}
+
+fn base(session: u32) -> Base {
+    let mut l = Base::new(
+        Address::Base,
+        key(),
+        session,
+        (session as u64) << 32,
+        Timing::default(),
+    );
+    l.add_peer(Address::Robot(1));
+    l.add_peer(Address::Robot(2));
+    l
+}
+
+fn robot(id: u16, boot: u32) -> Robot {
+    let mut l = Robot::new(
+        Address::Robot(id),
+        key(),
+        boot,
+        (boot as u64) << 32 | 0x8000_0000,
+        Timing::default(),
+    );
+    l.add_peer(Address::Base);
+    l
+}
+
+/// Delivers one wire frame to a link.
+fn deliver<const N: usize>(to: &mut Link<N>, wire: &[u8], now: u32) -> Vec<Result<Event, Reject>> {
+    let mut dec = FrameDecoder::new();
+    let mut out = Vec::new();
+    for &b in wire {
+        if let Some(r) = dec.push(b) {
+            out.push(to.receive(r, now));
+        }
+    }
+    out
+}
+
+fn wire<const N: usize>(from: &mut Link<N>, to: Address, now: u32, m: Message) -> Vec<u8> {
+    let mut buf = [0u8; MAX_WIRE];
+    let n = from.send(to, now, &m, &mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+fn leader_state(x: i32) -> Message {
+    Message::LeaderState(LeaderState {
+        pose: WirePose {
+            x_mm: x,
+            y_mm: 0,
+            heading: 0,
+        },
+        v_mm_s: 100,
+        omega_mrad_s: 0,
+        blend: 0,
+    })
+}
+
+/// Robot challenges base, base answers: robot learns the base's session.
+fn robot_links_to<const N: usize>(r: &mut Robot, b: &mut Link<N>, now: u32) {
+    let mut buf = [0u8; MAX_WIRE];
+    assert_eq!(r.due_challenge(now), Some(Address::Base));
+    let n = r.challenge(Address::Base, now, &mut buf).unwrap();
+    let ev = deliver(b, &buf[..n], now);
+    let Ok(Event::Challenged { from, nonce }) = ev[0] else {
+        panic!("{ev:?}")
+    };
+    let n = b.answer(from, nonce, now + 10, &mut buf).unwrap();
+    let ev = deliver(r, &buf[..n], now + 20);
+    assert_eq!(
+        ev,
+        vec![Ok(Event::Linked {
+            peer: Address::Base
+        })]
+    );
+}
+
+#[test]
+fn nothing_is_accepted_before_the_handshake() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    let w = wire(&mut b, Address::Broadcast, 0, leader_state(1));
+    assert_eq!(deliver(&mut r, &w, 0), vec![Err(Reject::UnknownSession)]);
+    robot_links_to(&mut r, &mut b, 100);
+    let w = wire(&mut b, Address::Broadcast, 200, leader_state(2));
+    assert!(matches!(
+        deliver(&mut r, &w, 200)[0],
+        Ok(Event::Message { .. })
+    ));
+}
+
+#[test]
+fn forged_replayed_and_reordered_frames_are_rejected() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    robot_links_to(&mut r, &mut b, 0);
+
+    let f1 = wire(&mut b, Address::Broadcast, 100, leader_state(1));
+    let f2 = wire(&mut b, Address::Broadcast, 200, leader_state(2));
+    let f3 = wire(&mut b, Address::Broadcast, 300, leader_state(3));
+    assert!(matches!(
+        deliver(&mut r, &f1, 100)[0],
+        Ok(Event::Message { .. })
+    ));
+    assert!(matches!(
+        deliver(&mut r, &f3, 300)[0],
+        Ok(Event::Message { .. })
+    ));
+    // f2 arrives late: older than f3, refused. f1 again: a replay.
+    assert_eq!(deliver(&mut r, &f2, 310), vec![Err(Reject::Replay)]);
+    assert_eq!(deliver(&mut r, &f1, 320), vec![Err(Reject::Replay)]);
+
+    // A rogue transmitter with another key, pretending to be the base station.
+    let mut rogue = Base::new(
+        Address::Base,
+        FleetKey::from_bytes(&[1; 32]),
+        77,
+        0,
+        Timing::default(),
+    );
+    rogue.add_peer(Address::Robot(1));
+    let forged = wire(&mut rogue, Address::Broadcast, 400, leader_state(99));
+    assert_eq!(deliver(&mut r, &forged, 400), vec![Err(Reject::BadTag)]);
+    // A stolen Welcome to a challenge this robot never sent.
+    let mut buf = [0u8; MAX_WIRE];
+    let n = b.answer(Address::Robot(1), 12345, 500, &mut buf).unwrap();
+    assert_eq!(deliver(&mut r, &buf[..n], 500), vec![Err(Reject::Replay)]);
+
+    // The 2 skipped broadcast seqs (f2 never accepted) count as lost, rejects by reason.
+    let s = r.stats();
+    assert_eq!(s.rejects.get(Reject::Replay), 3);
+    assert_eq!(s.rejects.get(Reject::BadTag), 1);
+    assert_eq!(r.peer(Address::Base).unwrap().lost, 1);
+}
+
+#[test]
+fn a_rebooted_robot_rejects_recorded_frames() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    robot_links_to(&mut r, &mut b, 0);
+    let recorded: Vec<_> = (0..5)
+        .map(|i| wire(&mut b, Address::Broadcast, 100 * i, leader_state(i as i32)))
+        .collect();
+
+    // Reboot: a new link with the next boot count.
+    let mut r = robot(1, 6);
+    for f in &recorded {
+        assert_eq!(deliver(&mut r, f, 1000), vec![Err(Reject::UnknownSession)]);
+    }
+    robot_links_to(&mut r, &mut b, 2000);
+    for f in &recorded {
+        assert_eq!(deliver(&mut r, f, 2100), vec![Err(Reject::Replay)]);
+    }
+    let fresh = wire(&mut b, Address::Broadcast, 2200, leader_state(7));
+    assert!(matches!(
+        deliver(&mut r, &fresh, 2200)[0],
+        Ok(Event::Message { .. })
+    ));
+}
+
+#[test]
+fn a_restarted_base_station_is_accepted_again_without_reopening_old_frames() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    robot_links_to(&mut r, &mut b, 0);
+    let recorded: Vec<_> = (1..50)
+        .map(|i| wire(&mut b, Address::Broadcast, 100 * i, leader_state(i as i32)))
+        .collect();
+    assert!(matches!(
+        deliver(&mut r, &recorded[0], 100)[0],
+        Ok(Event::Message { .. })
+    ));
+
+    // Restart: new session, counters from zero.
+    let mut b = base(78);
+    let f = wire(&mut b, Address::Broadcast, 200, leader_state(0));
+    assert_eq!(deliver(&mut r, &f, 200), vec![Err(Reject::BadTag)]);
+    // The robot notices the silence and challenges; no operator needed.
+    assert_eq!(r.due_challenge(900), None);
+    robot_links_to(&mut r, &mut b, 1100);
+    let f = wire(&mut b, Address::Broadcast, 1200, leader_state(1));
+    assert!(matches!(
+        deliver(&mut r, &f, 1200)[0],
+        Ok(Event::Message { .. })
+    ));
+    // The previous session's frames, some with far higher seqs, never verify again.
+    for f in &recorded[1..] {
+        assert_eq!(deliver(&mut r, f, 1300), vec![Err(Reject::BadTag)]);
+    }
+}
+
+#[test]
+fn replayed_hellos_are_answered_at_a_bounded_rate() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    let mut buf = [0u8; MAX_WIRE];
+    let n = r.challenge(Address::Base, 0, &mut buf).unwrap();
+    let hello = buf[..n].to_vec();
+    let answered = (0..100)
+        .filter(|i| {
+            matches!(
+                deliver(&mut b, &hello, i * 10)[0],
+                Ok(Event::Challenged { .. })
+            )
+        })
+        .count();
+    // 1 s of flooding, one answer per 300 ms.
+    assert_eq!(answered, 4);
+}
+
+#[test]
+fn the_base_station_learns_robot_sessions_and_counts_per_robot() {
+    let mut b = base(77);
+    let mut r1 = robot(1, 5);
+    let mut r2 = robot(2, 9);
+    robot_links_to(&mut r1, &mut b, 0);
+    robot_links_to(&mut r2, &mut b, 0);
+    // The base challenges both robots (it knows neither session yet).
+    for r in [&mut r1, &mut r2] {
+        let mut buf = [0u8; MAX_WIRE];
+        let peer = b.due_challenge(50).unwrap();
+        let n = b.challenge(peer, 50, &mut buf).unwrap();
+        let ev = deliver(r, &buf[..n], 60);
+        let Ok(Event::Challenged { from, nonce }) = ev[0] else {
+            panic!("{ev:?}")
+        };
+        let n = r.answer(from, nonce, 60, &mut buf).unwrap();
+        assert!(matches!(
+            deliver(&mut b, &buf[..n], 70)[0],
+            Ok(Event::Linked { .. })
+        ));
+    }
+    assert_eq!(b.due_challenge(80), None);
+    let t = Message::Telemetry(Telemetry::default());
+    let w1 = wire(&mut r1, Address::Base, 100, t);
+    let w2 = wire(&mut r2, Address::Base, 100, t);
+    assert!(matches!(
+        deliver(&mut b, &w1, 100)[0],
+        Ok(Event::Message { .. })
+    ));
+    assert!(matches!(
+        deliver(&mut b, &w2, 100)[0],
+        Ok(Event::Message { .. })
+    ));
+    assert_eq!(deliver(&mut b, &w2, 101), vec![Err(Reject::Replay)]);
+    assert_eq!(
+        b.peer(Address::Robot(2))
+            .unwrap()
+            .rejects
+            .get(Reject::Replay),
+        1
+    );
+    assert_eq!(b.peer(Address::Robot(1)).unwrap().rejects.total(), 0);
+    // Robot 1 telemetry addressed to the base is not for robot 2.
+    assert_eq!(deliver(&mut r2, &w1, 102), vec![Ok(Event::Ignored)]);
+}
