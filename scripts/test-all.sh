@@ -11,7 +11,7 @@ if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
 fi
 
 step "no_std crates build for the MCU target"
-cargo build --locked --release --target thumbv7em-none-eabihf -p protocol
+cargo build --locked --release --target thumbv7em-none-eabihf -p protocol -p control-core
 
 step "host workspace tests"
 cargo test --locked --workspace --release

@@ -5,7 +5,9 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use mavlink::dialects::common::{MavFrame, MavMessage, PositionTargetTypemask, POSITION_TARGET_LOCAL_NED_DATA};
+use mavlink::dialects::common::{
+    MavFrame, MavMessage, PositionTargetTypemask, POSITION_TARGET_LOCAL_NED_DATA,
+};
 use mavlink::{MavHeader, MavlinkVersion, SigningConfig, SigningData};
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{LeaderState, Message, WirePose};
@@ -40,11 +42,7 @@ fn linked_pair() -> (Link<1>, Link<1>) {
     (base, robot)
 }
 
-fn deliver(
-    link: &mut Link<1>,
-    wire: &[u8],
-    now: u32,
-) -> Option<Result<Event, protocol::Reject>> {
+fn deliver(link: &mut Link<1>, wire: &[u8], now: u32) -> Option<Result<Event, protocol::Reject>> {
     let mut dec = FrameDecoder::new();
     let mut got = None;
     for &byte in wire {
@@ -62,11 +60,21 @@ fn ours(c: &mut Criterion) {
     // A frame an hour into a run: sequence and clock at realistic widths.
     let t0 = 3_600_000;
     for i in 0..36_000 {
-        base.send(Address::Broadcast, i, &Message::LeaderState(leader_state(0)), &mut buf)
-            .unwrap();
+        base.send(
+            Address::Broadcast,
+            i,
+            &Message::LeaderState(leader_state(0)),
+            &mut buf,
+        )
+        .unwrap();
     }
     let n = base
-        .send(Address::Broadcast, t0, &Message::LeaderState(leader_state(0)), &mut buf)
+        .send(
+            Address::Broadcast,
+            t0,
+            &Message::LeaderState(leader_state(0)),
+            &mut buf,
+        )
         .unwrap();
     println!("wire bytes, this protocol, leader state: {n}");
     let mut i = 0u32;
@@ -117,7 +125,10 @@ fn mavlink(c: &mut Criterion) {
     };
     let mut buf = Vec::with_capacity(300);
     mavlink::write_v2_msg_signed(&mut buf, header, &mavlink_message(0), Some(&tx)).unwrap();
-    println!("wire bytes, MAVLink 2 signed, POSITION_TARGET_LOCAL_NED: {}", buf.len());
+    println!(
+        "wire bytes, MAVLink 2 signed, POSITION_TARGET_LOCAL_NED: {}",
+        buf.len()
+    );
     let mut i = 0u32;
     c.bench_function("leader_state/mavlink2_signed", |b| {
         b.iter(|| {

@@ -1,0 +1,184 @@
+//! The L-φ leader-follower law (Desai and Kumar's separation-bearing control), in the
+//! singularity-free form of `paper-notes.md`.
+//!
+//! L and φ run from the leader's reference point to the follower's control point, d
+//! ahead of the follower's axle; φ is measured from the leader's heading. With
+//! γ = α_i + φ − α_j,
+//!
+//! ```text
+//! a   = L̇_d + k1 (L_d − L) + v_i cos φ
+//! c   = L (φ̇_d + k2 (φ_d − φ)) − v_i sin φ + L ω_i
+//! ω_j = (a sin γ + c cos γ) / d
+//! v_j =  a cos γ − c sin γ
+//! ```
+//!
+//! which makes L̇ = L̇_d + k1 (L_d − L) and φ̇ = φ̇_d + k2 (φ_d − φ) exactly (the paper's
+//! law, plus feed-forward of a moving slot). The paper's form divides by cos γ; this one
+//! never divides by anything but d > 0.
+
+use crate::config::FollowerGains;
+use crate::{math, NonFinite, Pose, Twist};
+
+/// The leader's state as a follower uses it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LeaderSnapshot {
+    pub pose: Pose,
+    pub v: f32,
+    pub omega: f32,
+}
+
+impl LeaderSnapshot {
+    pub fn is_finite(&self) -> bool {
+        self.pose.is_finite() && self.v.is_finite() && self.omega.is_finite()
+    }
+
+    /// The leader `dt` seconds later, driving the same arc (latency compensation).
+    pub fn predict(&self, dt: f32) -> LeaderSnapshot {
+        let p = self.pose;
+        let dh = self.omega * dt;
+        let (x, y) = if math::abs(dh) < 1e-4 {
+            let (s, c) = math::sin_cos(p.heading + 0.5 * dh);
+            (p.x + self.v * dt * c, p.y + self.v * dt * s)
+        } else {
+            let r = self.v / self.omega;
+            let (s0, c0) = math::sin_cos(p.heading);
+            let (s1, c1) = math::sin_cos(p.heading + dh);
+            (p.x + r * (s1 - s0), p.y - r * (c1 - c0))
+        };
+        LeaderSnapshot {
+            pose: Pose::new(x, y, math::wrap_angle(p.heading + dh)),
+            ..*self
+        }
+    }
+}
+
+/// A slot: desired distance L_d and bearing φ_d, with their rates while the formation
+/// changes shape.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SlotRef {
+    pub l: f32,
+    pub phi: f32,
+    pub l_rate: f32,
+    pub phi_rate: f32,
+}
+
+/// L, φ and γ of a follower relative to the leader.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Relative {
+    pub l: f32,
+    pub phi: f32,
+    pub gamma: f32,
+}
+
+pub fn relative(leader: &Pose, follower: &Pose, d: f32) -> Relative {
+    let (px, py) = follower.ahead(d);
+    let dx = px - leader.x;
+    let dy = py - leader.y;
+    let phi = math::wrap_angle(math::atan2(dy, dx) - leader.heading);
+    Relative {
+        l: math::hypot(dx, dy),
+        phi,
+        gamma: math::wrap_angle(leader.heading + phi - follower.heading),
+    }
+}
+
+/// The point a slot puts the follower's control point at.
+pub fn slot_point(leader: &Pose, l: f32, phi: f32) -> (f32, f32) {
+    let (s, c) = math::sin_cos(leader.heading + phi);
+    (leader.x + l * c, leader.y + l * s)
+}
+
+/// The follower's (v, ω) from the singularity-free law, before any limit.
+pub fn lphi_law(
+    leader: &LeaderSnapshot,
+    follower: &Pose,
+    slot: &SlotRef,
+    g: &FollowerGains,
+) -> Result<Twist, NonFinite> {
+    let finite = leader.is_finite()
+        && follower.is_finite()
+        && slot.l.is_finite()
+        && slot.phi.is_finite()
+        && slot.l_rate.is_finite()
+        && slot.phi_rate.is_finite();
+    // `d > 0` is false for NaN too.
+    let d_ok = g.d > 0.0;
+    if !finite || !d_ok {
+        return Err(NonFinite);
+    }
+    let r = relative(&leader.pose, follower, g.d);
+    let (sphi, cphi) = math::sin_cos(r.phi);
+    let (sg, cg) = math::sin_cos(r.gamma);
+    let a = slot.l_rate + g.k1 * (slot.l - r.l) + leader.v * cphi;
+    let c = r.l * (slot.phi_rate + g.k2 * math::wrap_angle(slot.phi - r.phi)) - leader.v * sphi
+        + r.l * leader.omega;
+    let out = Twist {
+        v: a * cg - c * sg,
+        omega: (a * sg + c * cg) / g.d,
+    };
+    if out.is_finite() {
+        Ok(out)
+    } else {
+        Err(NonFinite)
+    }
+}
+
+/// The paper's form (divides by cos γ), for comparison in tests. `None` where
+/// |cos γ| < 1e-3.
+pub fn lphi_law_paper(
+    leader: &LeaderSnapshot,
+    follower: &Pose,
+    slot: &SlotRef,
+    g: &FollowerGains,
+) -> Option<Twist> {
+    let r = relative(&leader.pose, follower, g.d);
+    let (sphi, cphi) = math::sin_cos(r.phi);
+    let (sg, cg) = math::sin_cos(r.gamma);
+    if math::abs(cg) < 1e-3 {
+        return None;
+    }
+    let tg = sg / cg;
+    let (vi, wi, l) = (leader.v, leader.omega, r.l);
+    let e_l = g.k1 * (slot.l - l);
+    let e_phi = g.k2 * math::wrap_angle(slot.phi - r.phi);
+    let omega = cg / g.d * (l * e_phi - vi * sphi + l * wi + e_l * tg + vi * cphi * tg);
+    let v = (e_l + vi * cphi) / cg - g.d * omega * tg;
+    Some(Twist { v, omega })
+}
+
+/// A follower's two slots, and the shape between them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Slots {
+    /// (L, φ) in the wide formation (triangle / V / custom).
+    pub wide: (f32, f32),
+    /// (L, φ) in the line.
+    pub line: (f32, f32),
+}
+
+impl Slots {
+    /// The slot at `blend` (0 = wide, 1 = line): the slot point moves on a straight line
+    /// in the leader's frame, so the reference never jumps and never crosses the leader.
+    pub fn at(&self, blend: f32) -> (f32, f32) {
+        let b = math::clamp(blend, 0.0, 1.0);
+        // The end points exactly, without an atan2 round trip.
+        if b <= 0.0 {
+            return self.wide;
+        }
+        if b >= 1.0 {
+            return self.line;
+        }
+        let point = |(l, phi): (f32, f32)| {
+            let (s, c) = math::sin_cos(phi);
+            (l * c, l * s)
+        };
+        let (wx, wy) = point(self.wide);
+        let (lx, ly) = point(self.line);
+        let x = wx + (lx - wx) * b;
+        let y = wy + (ly - wy) * b;
+        (math::hypot(x, y), math::atan2(y, x))
+    }
+}

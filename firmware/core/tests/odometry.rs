@@ -1,0 +1,71 @@
+//! Odometry from ticks, pose fixes blended in, outliers dropped.
+
+mod common;
+
+use common::Body;
+use control_core::config::RobotConfig;
+use control_core::controller::MotorOutput;
+use control_core::odometry::{FixOutcome, Odometry, PoseFixSample};
+use control_core::Pose;
+
+const CFG: RobotConfig = RobotConfig::DEFAULT;
+
+fn fix(pose: Pose, t: u32) -> PoseFixSample {
+    PoseFixSample {
+        pose,
+        sigma: 0.02,
+        time_ms: t,
+    }
+}
+
+#[test]
+fn dead_reckoning_follows_an_arc() {
+    let mut body = Body::new(Pose::new(1.0, 2.0, 0.5));
+    let mut odo = Odometry::new();
+    odo.update(body.sensors(&CFG, None).ticks, 0, &CFG);
+    assert_eq!(
+        odo.apply_fix(&fix(body.pose, 0), 0, &CFG),
+        FixOutcome::Initialized
+    );
+    let out = MotorOutput { duty: [0.3, 0.4] };
+    for i in 1..=300 {
+        body.advance(&out, &CFG, 0.1, 20);
+        odo.update(body.sensors(&CFG, None).ticks, i * 100, &CFG);
+    }
+    let p = odo.pose().unwrap();
+    let err = (p.x - body.pose.x).hypot(p.y - body.pose.y);
+    println!("30 s of dead reckoning on an arc: {err:.4} m off");
+    // ~12 m driven: quantisation and micromath's trig keep it within 0.5 %.
+    assert!(err < 0.06, "{err}");
+}
+
+#[test]
+fn fixes_pull_the_pose_and_outliers_are_dropped() {
+    let mut odo = Odometry::new();
+    odo.update([0, 0], 0, &CFG);
+    odo.apply_fix(&fix(Pose::new(0.0, 0.0, 0.0), 0), 0, &CFG);
+    for i in 1..=20 {
+        odo.update([0, 0], i * 100, &CFG);
+        let o = odo.apply_fix(&fix(Pose::new(0.2, 0.0, 0.0), i * 100), i * 100, &CFG);
+        assert_eq!(o, FixOutcome::Applied);
+    }
+    assert!((odo.pose().unwrap().x - 0.2).abs() < 0.01);
+
+    // A fix one metre off is an outlier.
+    odo.update([0, 0], 2100, &CFG);
+    let o = odo.apply_fix(&fix(Pose::new(1.2, 0.0, 0.0), 2100), 2100, &CFG);
+    assert_eq!(o, FixOutcome::Rejected);
+    assert!((odo.pose().unwrap().x - 0.2).abs() < 0.01);
+
+    // Ten consistent ones mean the odometry is what is wrong.
+    let mut last = o;
+    for i in 22..=30 {
+        odo.update([0, 0], i * 100, &CFG);
+        last = odo.apply_fix(&fix(Pose::new(1.2, 0.0, 0.0), i * 100), i * 100, &CFG);
+    }
+    assert_eq!(last, FixOutcome::Relocalized);
+    assert!((odo.pose().unwrap().x - 1.2).abs() < 0.01);
+
+    let bad = fix(Pose::new(f32::NAN, 0.0, 0.0), 3200);
+    assert_eq!(odo.apply_fix(&bad, 3200, &CFG), FixOutcome::Invalid);
+}
