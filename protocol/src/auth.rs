@@ -23,6 +23,8 @@ pub struct FleetKey {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BadKey;
 
+impl core::error::Error for BadKey {}
+
 impl core::fmt::Display for BadKey {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str("a fleet key is 64 hexadecimal digits (32 bytes)")

@@ -59,6 +59,8 @@ pub enum EncodeError {
     UnknownPeer,
 }
 
+impl core::error::Error for EncodeError {}
+
 impl core::fmt::Display for EncodeError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
@@ -137,6 +139,15 @@ pub fn peek_header(raw: &[u8]) -> Result<Header, Reject> {
         seq: route.seq,
         time_ms: route.time_ms,
     })
+}
+
+/// Decodes a COBS-decoded frame **without** checking its tag: for capture analysis
+/// (`basestation decode` without the key). Never act on what it returns.
+pub fn parse_unverified(raw: &[u8]) -> Result<(Header, Message), Reject> {
+    let header = peek_header(raw)?;
+    let body = &raw[1..raw.len() - TAG_LEN];
+    let (_, payload) = postcard::take_from_bytes::<Route>(body).map_err(|_| Reject::Truncated)?;
+    Ok((header, Message::decode(header.id, payload)?))
 }
 
 /// Verifies and decodes a COBS-decoded frame. `session_of` gives the sender's session

@@ -98,6 +98,8 @@ impl Reject {
     }
 }
 
+impl core::error::Error for Reject {}
+
 impl core::fmt::Display for Reject {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(self.name())

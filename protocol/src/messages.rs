@@ -212,7 +212,7 @@ pub struct Welcome {
 macro_rules! messages {
     ($($id:literal => $name:ident, $path:literal;)*) => {
         /// Any message, for dispatch after decoding.
-        #[derive(Debug, Clone, Copy, PartialEq)]
+        #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
         #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub enum Message {
             $($name($name),)*

@@ -15,6 +15,8 @@ const UNITS_PER_RAD: f32 = ANGLE_UNITS_PER_TURN as f32 / (2.0 * PI);
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct NonFinite;
 
+impl core::error::Error for NonFinite {}
+
 impl core::fmt::Display for NonFinite {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str("value is NaN or infinite")

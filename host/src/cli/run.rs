@@ -1,0 +1,107 @@
+//! `basestation run SCENARIO --port DEV [--baud N]` or `--udp ADDR`: drive real robots.
+//!
+//! The station steps at 10 Hz on the wall clock. The fleet key is required (file or
+//! environment); there is no built-in key. Ctrl-C sends a Stop to every robot before
+//! exiting.
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use clap::Args;
+use host::station::{BaseStation, StationConfig};
+use host::transport::{Serial, Transport, Udp};
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// A site/scenario file, or a shipped scenario's name.
+    pub scenario: String,
+    /// Serial device of the radio modem (e.g. /dev/ttyUSB0).
+    #[arg(long, required_unless_present = "udp", conflicts_with = "udp")]
+    pub port: Option<String>,
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// Send frames as UDP datagrams to this address (a radio bridge or broadcast).
+    #[arg(long)]
+    pub udp: Option<SocketAddr>,
+    /// Local UDP address to bind.
+    #[arg(long, default_value = "0.0.0.0:0")]
+    pub bind: SocketAddr,
+    /// Stop after this many seconds (default: until the goal is reached or Ctrl-C).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    #[command(flatten)]
+    pub key: super::KeyArgs,
+}
+
+pub fn run(args: RunArgs) -> anyhow::Result<()> {
+    let scenario = super::load_scenario(&args.scenario)?;
+    let Some(key) = args.key.load()? else {
+        bail!("no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY (64 hex digits)");
+    };
+    let mut transport: Box<dyn Transport> = match (&args.port, args.udp) {
+        (Some(port), _) => Box::new(
+            Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?,
+        ),
+        (None, Some(peer)) => Box::new(Udp::open(args.bind, peer).context("cannot open the UDP socket")?),
+        (None, None) => unreachable!("clap requires --port or --udp"),
+    };
+    let mut random = [0u8; 12];
+    getrandom::fill(&mut random).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
+    let session = u32::from_le_bytes(random[..4].try_into().expect("4 bytes"));
+    let nonce_base = u64::from_le_bytes(random[4..].try_into().expect("8 bytes"));
+    let mut station = BaseStation::new(StationConfig::from_scenario(&scenario), key, session, nonce_base);
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing Ctrl-C")?;
+
+    tracing::info!(scenario = %scenario.name, "base station running");
+    let start = Instant::now();
+    let period = Duration::from_millis(100);
+    let mut next = start;
+    let mut buf = [0u8; 2048];
+    let mut last_report = 0u32;
+    while !stop.load(Ordering::SeqCst) {
+        let now_ms = start.elapsed().as_millis() as u32;
+        if args.duration.is_some_and(|d| now_ms as f64 / 1000.0 >= d) {
+            break;
+        }
+        // Receive until the next tick.
+        loop {
+            let left = next.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            let n = transport.recv(&mut buf, left)?;
+            if n > 0 {
+                station.receive(&buf[..n], start.elapsed().as_millis() as u32);
+            }
+        }
+        next += period;
+        let now_ms = start.elapsed().as_millis() as u32;
+        station.step(now_ms);
+        transport.send(&station.take_outbox())?;
+        if now_ms / 1000 != last_report {
+            last_report = now_ms / 1000;
+            let stats = station.link().stats();
+            tracing::info!(
+                accepted = stats.accepted,
+                rejected = stats.rejects.total(),
+                lost = stats.lost,
+                planner = ?station.planner().mode(),
+                "link"
+            );
+        }
+        if station.planner().arrived() && args.duration.is_none() {
+            tracing::info!("goal reached");
+            break;
+        }
+    }
+    // Leave the fleet standing.
+    station.broadcast_stop(start.elapsed().as_millis() as u32);
+    transport.send(&station.take_outbox())?;
+    Ok(())
+}

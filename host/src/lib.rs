@@ -1,0 +1,10 @@
+//! The base station: it steers the leader with an artificial potential field, decides the
+//! formation, broadcasts the leader's state and watches the fleet.
+
+pub mod formation;
+pub mod geometry;
+pub mod map;
+pub mod planner;
+pub mod scenario;
+pub mod station;
+pub mod transport;

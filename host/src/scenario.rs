@@ -1,0 +1,820 @@
+//! Scenario and site files (TOML): the map, the robots, the formation, the route, the
+//! gains and limits, and for simulation the link and noise models. Every field is
+//! documented in `docs/scenario.md`.
+//!
+//! A bad file gives a [`ScenarioError`] naming the file, the line and column, and the
+//! field (`map.obstacles[2].radius`): syntax and type errors from the TOML parser,
+//! unknown fields, and the semantic checks of [`Scenario::validate`].
+
+use std::fmt;
+use std::path::Path;
+
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+use crate::formation::{FormationSpec, WideShape};
+use crate::geometry::Obstacle;
+use crate::map::Map;
+use crate::planner::apf::ApfParams;
+use crate::planner::PlannerParams;
+
+/// A scenario that could not be loaded: where, which field, why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScenarioError {
+    pub file: String,
+    /// 1-based line and column, where the field could be found in the file.
+    pub position: Option<(usize, usize)>,
+    /// The field's path, e.g. `map.obstacles[2].radius` (empty for the whole file).
+    pub field: String,
+    pub message: String,
+}
+
+impl fmt::Display for ScenarioError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some((line, col)) = self.position {
+            write!(f, ":{line}:{col}")?;
+        }
+        if !self.field.is_empty() {
+            write!(f, ": field `{}`", self.field)?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for ScenarioError {}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    #[serde(default)]
+    pub map: MapSpec,
+    #[serde(default)]
+    pub robot: RobotSpec,
+    pub robots: Vec<RobotEntry>,
+    pub formation: FormationToml,
+    pub route: RouteSpec,
+    #[serde(default)]
+    pub planner: PlannerToml,
+    #[serde(default)]
+    pub follower: FollowerToml,
+    #[serde(default)]
+    pub link: LinkSpec,
+    #[serde(default)]
+    pub localization: LocalizationSpec,
+    #[serde(default)]
+    pub sim: SimSpec,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleSpec>,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ObstacleKind {
+    Circle,
+    Segment,
+    Polygon,
+    Rectangle,
+}
+
+/// One obstacle. A flat table (not a tagged enum) so that an error names the exact field.
+/// `circle`: `center`, `radius`; `segment`: `from`, `to`; `polygon`: `points`;
+/// `rectangle`: `min`, `max`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    pub kind: ObstacleKind,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub to: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub points: Option<Vec<[f64; 2]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max: Option<[f64; 2]>,
+}
+
+impl ObstacleSpec {
+    /// The fields each kind needs, in order.
+    fn fields(kind: ObstacleKind) -> &'static [&'static str] {
+        match kind {
+            ObstacleKind::Circle => &["center", "radius"],
+            ObstacleKind::Segment => &["from", "to"],
+            ObstacleKind::Polygon => &["points"],
+            ObstacleKind::Rectangle => &["min", "max"],
+        }
+    }
+
+    fn present(&self) -> [(&'static str, bool); 7] {
+        [
+            ("center", self.center.is_some()),
+            ("radius", self.radius.is_some()),
+            ("from", self.from.is_some()),
+            ("to", self.to.is_some()),
+            ("points", self.points.is_some()),
+            ("min", self.min.is_some()),
+            ("max", self.max.is_some()),
+        ]
+    }
+
+    /// Checks the fields against the kind; `(field, message)` on error.
+    fn check(&self, at: &str) -> Result<(), (String, String)> {
+        let need = Self::fields(self.kind);
+        for (name, is_set) in self.present() {
+            if need.contains(&name) && !is_set {
+                return Err((at.to_string(), format!("a {:?} needs `{name}`", self.kind).to_lowercase()));
+            }
+            if !need.contains(&name) && is_set {
+                return Err((
+                    format!("{at}.{name}"),
+                    format!("`{name}` does not belong to a {:?} (it takes {})", self.kind, need.join(", "))
+                        .to_lowercase(),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The obstacle; only for a spec that passed validation.
+    pub fn to_obstacle(&self) -> Obstacle {
+        let v = |p: Option<[f64; 2]>| {
+            let p = p.unwrap_or_default();
+            DVec2::new(p[0], p[1])
+        };
+        match self.kind {
+            ObstacleKind::Circle => Obstacle::Circle {
+                center: v(self.center),
+                radius: self.radius.unwrap_or_default(),
+            },
+            ObstacleKind::Segment => Obstacle::Segment {
+                a: v(self.from),
+                b: v(self.to),
+            },
+            ObstacleKind::Polygon => Obstacle::Polygon {
+                points: self
+                    .points
+                    .iter()
+                    .flatten()
+                    .map(|p| DVec2::new(p[0], p[1]))
+                    .collect(),
+            },
+            ObstacleKind::Rectangle => {
+                let (lo, hi) = (v(self.min), v(self.max));
+                Obstacle::Polygon {
+                    points: vec![lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)],
+                }
+            }
+        }
+    }
+}
+
+/// The robot type: body, wheels, motors, limits. Shared by every robot of the scenario.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobotSpec {
+    pub footprint_radius: f64,
+    pub track_width: f64,
+    pub wheel_radius: f64,
+    pub ticks_per_rev: u32,
+    pub max_wheel_speed: f64,
+    pub max_speed: f64,
+    pub max_reverse_speed: f64,
+    pub max_turn_rate: f64,
+    pub max_accel: f64,
+    pub brake_decel: f64,
+    pub motor_time_constant_s: f64,
+    pub motor_no_load_speed: f64,
+    pub motor_dead_band: f64,
+}
+
+impl Default for RobotSpec {
+    fn default() -> Self {
+        Self {
+            footprint_radius: 0.3,
+            track_width: 0.4,
+            wheel_radius: 0.08,
+            ticks_per_rev: 2048,
+            max_wheel_speed: 1.0,
+            max_speed: 0.8,
+            max_reverse_speed: 0.3,
+            max_turn_rate: 1.5,
+            max_accel: 1.0,
+            brake_decel: 1.0,
+            motor_time_constant_s: 0.1,
+            motor_no_load_speed: 1.2,
+            motor_dead_band: 0.03,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    Leader,
+    Follower,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RobotEntry {
+    pub id: u16,
+    pub role: Role,
+    pub start: StartPose,
+    /// Speed at the start, m/s (the paper's leader starts at 0.15).
+    #[serde(default)]
+    pub initial_speed: f64,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StartPose {
+    pub x: f64,
+    pub y: f64,
+    #[serde(default)]
+    pub heading_deg: f64,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeName {
+    Triangle,
+    V,
+    Custom,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SlotSpec {
+    pub distance: f64,
+    pub angle_deg: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FormationToml {
+    pub shape: ShapeName,
+    /// L_d of the triangle / V, m.
+    #[serde(default = "defaults::distance")]
+    pub distance: f64,
+    /// φ_d of the triangle / V, degrees from the leader's heading (±).
+    #[serde(default = "defaults::angle_deg")]
+    pub angle_deg: f64,
+    /// Custom slots, one per follower in id order.
+    #[serde(default)]
+    pub slots: Vec<SlotSpec>,
+    /// Line spacing D, m.
+    #[serde(default = "defaults::line_spacing")]
+    pub line_spacing: f64,
+    #[serde(default = "defaults::margin")]
+    pub margin: f64,
+    #[serde(default = "defaults::transition_s")]
+    pub transition_s: f64,
+    #[serde(default = "defaults::min_dwell_s")]
+    pub min_dwell_s: f64,
+    #[serde(default = "defaults::lookahead")]
+    pub lookahead: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RouteSpec {
+    #[serde(default)]
+    pub waypoints: Vec<[f64; 2]>,
+    #[serde(default)]
+    pub goal: Option<[f64; 2]>,
+    #[serde(default = "defaults::arrival_tolerance")]
+    pub arrival_tolerance: f64,
+    #[serde(default = "defaults::waypoint_tolerance")]
+    pub waypoint_tolerance: f64,
+}
+
+impl RouteSpec {
+    /// Waypoints then the goal.
+    pub fn points(&self) -> Vec<DVec2> {
+        self.waypoints
+            .iter()
+            .chain(self.goal.iter())
+            .map(|p| DVec2::new(p[0], p[1]))
+            .collect()
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlannerToml {
+    pub k_a: f64,
+    pub k_r: f64,
+    pub r_det: f64,
+    pub attraction_saturation: f64,
+    pub max_speed: f64,
+    pub max_turn_rate: f64,
+    pub max_accel: f64,
+    pub heading_gain: f64,
+    pub slot_weight: f64,
+    pub follow_clearance: f64,
+    /// Followers whose tracking error exceeds this slow the leader down, m.
+    pub wait_for_followers_above: f64,
+}
+
+impl Default for PlannerToml {
+    fn default() -> Self {
+        let p = PlannerParams::DEFAULT;
+        Self {
+            k_a: p.apf.k_a,
+            k_r: p.apf.k_r,
+            r_det: p.apf.r_det,
+            attraction_saturation: p.apf.attraction_saturation,
+            max_speed: p.max_speed,
+            max_turn_rate: p.max_turn_rate,
+            max_accel: p.max_accel,
+            heading_gain: p.heading_gain,
+            slot_weight: p.slot_weight,
+            follow_clearance: p.follow_clearance,
+            wait_for_followers_above: 0.3,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct FollowerToml {
+    pub k1: f64,
+    pub k2: f64,
+    pub d: f64,
+    pub leader_timeout_ms: u32,
+}
+
+impl Default for FollowerToml {
+    fn default() -> Self {
+        Self {
+            k1: 0.5,
+            k2: 0.3,
+            d: 0.2,
+            leader_timeout_ms: 500,
+        }
+    }
+}
+
+/// The simulated radio.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinkSpec {
+    pub latency_ms: f64,
+    pub jitter_ms: f64,
+    /// Probability that a frame is lost.
+    pub loss: f64,
+    /// Probability that a byte is corrupted.
+    pub byte_corruption: f64,
+    pub baud: u32,
+}
+
+impl Default for LinkSpec {
+    fn default() -> Self {
+        Self {
+            latency_ms: 50.0,
+            jitter_ms: 10.0,
+            loss: 0.05,
+            byte_corruption: 0.0,
+            baud: 115_200,
+        }
+    }
+}
+
+/// The simulated localization system.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct LocalizationSpec {
+    pub sigma_m: f64,
+    pub heading_sigma_deg: f64,
+    pub rate_hz: f64,
+    pub latency_ms: f64,
+}
+
+impl Default for LocalizationSpec {
+    fn default() -> Self {
+        Self {
+            sigma_m: 0.02,
+            heading_sigma_deg: 0.5,
+            rate_hz: 10.0,
+            latency_ms: 20.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimSpec {
+    pub duration_s: f64,
+    pub seed: u64,
+    pub physics_step_ms: u32,
+}
+
+impl Default for SimSpec {
+    fn default() -> Self {
+        Self {
+            duration_s: 240.0,
+            seed: 1,
+            physics_step_ms: 10,
+        }
+    }
+}
+
+mod defaults {
+    pub fn distance() -> f64 {
+        3.0
+    }
+    pub fn angle_deg() -> f64 {
+        150.0
+    }
+    pub fn line_spacing() -> f64 {
+        1.5
+    }
+    pub fn margin() -> f64 {
+        0.5
+    }
+    pub fn transition_s() -> f64 {
+        3.0
+    }
+    pub fn min_dwell_s() -> f64 {
+        2.0
+    }
+    pub fn lookahead() -> f64 {
+        5.0
+    }
+    pub fn arrival_tolerance() -> f64 {
+        0.3
+    }
+    pub fn waypoint_tolerance() -> f64 {
+        1.0
+    }
+}
+
+/// One path element of a field, for locating it in the file.
+enum Seg<'a> {
+    Key(&'a str),
+    Index(usize),
+}
+
+fn split_path(path: &str) -> Vec<Seg<'_>> {
+    let mut out = Vec::new();
+    for part in path.split('.').filter(|p| !p.is_empty()) {
+        let (key, rest) = part.split_once('[').unwrap_or((part, ""));
+        if !key.is_empty() {
+            out.push(Seg::Key(key));
+        }
+        for idx in rest.split('[') {
+            if let Ok(i) = idx.trim_end_matches(']').parse() {
+                out.push(Seg::Index(i));
+            }
+        }
+    }
+    out
+}
+
+fn line_col(src: &str, offset: usize) -> (usize, usize) {
+    let before = &src[..offset.min(src.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    (line, col)
+}
+
+/// Where the deepest existing part of `path` is in the file.
+fn locate(src: &str, path: &str) -> Option<(usize, usize)> {
+    let root = toml::de::DeTable::parse(src).ok()?;
+    let mut span = root.span();
+    let root = toml::de::DeValue::Table(root.into_inner());
+    let mut value = &root;
+    for seg in split_path(path) {
+        let next = match seg {
+            Seg::Key(k) => value.get(k),
+            Seg::Index(i) => value.get(i),
+        };
+        match next {
+            Some(v) => {
+                span = v.span();
+                value = v.get_ref();
+            }
+            None => break,
+        }
+    }
+    Some(line_col(src, span.start))
+}
+
+impl Scenario {
+    /// Reads, parses and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let file = path.display().to_string();
+        let src = std::fs::read_to_string(path).map_err(|e| ScenarioError {
+            file: file.clone(),
+            position: None,
+            field: String::new(),
+            message: format!("cannot read the file: {e}"),
+        })?;
+        Scenario::parse(&src, &file)
+    }
+
+    /// Parses and validates scenario text; `file` names it in errors.
+    pub fn parse(src: &str, file: &str) -> Result<Scenario, ScenarioError> {
+        let error = |field: String, position: Option<(usize, usize)>, message: String| ScenarioError {
+            file: file.to_string(),
+            position,
+            field,
+            message,
+        };
+        let de = toml::Deserializer::parse(src).map_err(|e| {
+            error(
+                String::new(),
+                e.span().map(|s| line_col(src, s.start)),
+                e.message().trim().to_string(),
+            )
+        })?;
+        let scenario: Scenario = serde_path_to_error::deserialize(de).map_err(|e| {
+            let field = e.path().to_string();
+            let field = if field == "." { String::new() } else { field };
+            let inner = e.into_inner();
+            let position = inner
+                .span()
+                .map(|s| line_col(src, s.start))
+                .or_else(|| locate(src, &field));
+            error(field, position, inner.message().trim().to_string())
+        })?;
+        scenario
+            .validate()
+            .map_err(|(field, message)| error(field.clone(), locate(src, &field), message))?;
+        Ok(scenario)
+    }
+
+    /// Semantic checks; the error names the field.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let fail = |field: &str, msg: &str| Err((field.to_string(), msg.to_string()));
+        let positive = |field: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err((field.to_string(), format!("must be a finite number > 0, got {v}")))
+            }
+        };
+        let finite = |field: &str, vs: &[f64]| {
+            if vs.iter().all(|v| v.is_finite()) {
+                Ok(())
+            } else {
+                Err((field.to_string(), "must be finite (no nan or inf)".to_string()))
+            }
+        };
+        let fraction = |field: &str, v: f64| {
+            if (0.0..1.0).contains(&v) {
+                Ok(())
+            } else {
+                Err((field.to_string(), format!("must be in [0, 1), got {v}")))
+            }
+        };
+
+        let r = &self.robot;
+        positive("robot.footprint_radius", r.footprint_radius)?;
+        positive("robot.track_width", r.track_width)?;
+        positive("robot.wheel_radius", r.wheel_radius)?;
+        positive("robot.max_wheel_speed", r.max_wheel_speed)?;
+        positive("robot.max_speed", r.max_speed)?;
+        positive("robot.max_turn_rate", r.max_turn_rate)?;
+        positive("robot.max_accel", r.max_accel)?;
+        positive("robot.brake_decel", r.brake_decel)?;
+        positive("robot.motor_time_constant_s", r.motor_time_constant_s)?;
+        positive("robot.motor_no_load_speed", r.motor_no_load_speed)?;
+        finite("robot.max_reverse_speed", &[r.max_reverse_speed])?;
+        if r.ticks_per_rev == 0 {
+            return fail("robot.ticks_per_rev", "must be > 0");
+        }
+        fraction("robot.motor_dead_band", r.motor_dead_band)?;
+
+        for (i, o) in self.map.obstacles.iter().enumerate() {
+            let field = format!("map.obstacles[{i}]");
+            o.check(&field)?;
+            let at = |name: &str| format!("{field}.{name}");
+            if let Some(c) = o.center {
+                finite(&at("center"), &c)?;
+            }
+            if let Some(r) = o.radius {
+                positive(&at("radius"), r)?;
+            }
+            for (name, p) in [("from", o.from), ("to", o.to), ("min", o.min), ("max", o.max)] {
+                if let Some(p) = p {
+                    finite(&at(name), &p)?;
+                }
+            }
+            if o.kind == ObstacleKind::Segment && o.from == o.to {
+                return fail(&at("to"), "a segment needs two distinct ends");
+            }
+            if let (Some(lo), Some(hi)) = (o.min, o.max) {
+                if !(lo[0] < hi[0] && lo[1] < hi[1]) {
+                    return fail(&at("max"), "max must be above and right of min");
+                }
+            }
+            if let Some(points) = &o.points {
+                if points.len() < 3 {
+                    return fail(&at("points"), "a polygon needs at least 3 points");
+                }
+                for (j, p) in points.iter().enumerate() {
+                    finite(&format!("{field}.points[{j}]"), p)?;
+                }
+            }
+        }
+        let map = self.build_map();
+
+        if self.robots.is_empty() {
+            return fail("robots", "at least a leader and one follower are needed");
+        }
+        let leaders = self.robots.iter().filter(|r| r.role == Role::Leader).count();
+        if leaders != 1 {
+            return fail("robots", &format!("exactly one robot must have role = \"leader\", found {leaders}"));
+        }
+        if self.followers().is_empty() {
+            return fail("robots", "at least one follower is needed");
+        }
+        for (i, robot) in self.robots.iter().enumerate() {
+            let field = format!("robots[{i}]");
+            if robot.id == u16::MAX {
+                return fail(&format!("{field}.id"), "id 65535 is reserved");
+            }
+            if self.robots[..i].iter().any(|o| o.id == robot.id) {
+                return fail(&format!("{field}.id"), &format!("id {} is used twice", robot.id));
+            }
+            let s = robot.start;
+            finite(&format!("{field}.start"), &[s.x, s.y, s.heading_deg])?;
+            finite(&format!("{field}.initial_speed"), &[robot.initial_speed])?;
+            let clear = map.clearance(DVec2::new(s.x, s.y), 10.0);
+            if clear < r.footprint_radius {
+                return fail(&format!("{field}.start"), "the robot starts inside or touching an obstacle");
+            }
+        }
+
+        let f = &self.formation;
+        positive("formation.distance", f.distance)?;
+        finite("formation.angle_deg", &[f.angle_deg])?;
+        if f.line_spacing < 2.0 * r.footprint_radius || !f.line_spacing.is_finite() {
+            return fail("formation.line_spacing", "must be at least two footprint radii (robots would touch)");
+        }
+        finite("formation.margin", &[f.margin])?;
+        positive("formation.transition_s", f.transition_s)?;
+        finite("formation.min_dwell_s", &[f.min_dwell_s])?;
+        positive("formation.lookahead", f.lookahead)?;
+        if f.shape == ShapeName::Custom {
+            if f.slots.len() != self.followers().len() {
+                return fail(
+                    "formation.slots",
+                    &format!("one slot per follower: {} followers, {} slots", self.followers().len(), f.slots.len()),
+                );
+            }
+            for (i, s) in f.slots.iter().enumerate() {
+                positive(&format!("formation.slots[{i}].distance"), s.distance)?;
+                finite(&format!("formation.slots[{i}].angle_deg"), &[s.angle_deg])?;
+            }
+        }
+
+        let route = self.route.points();
+        if route.is_empty() {
+            return fail("route", "give a goal or at least one waypoint");
+        }
+        for (i, p) in route.iter().enumerate() {
+            let field = if i < self.route.waypoints.len() {
+                format!("route.waypoints[{i}]")
+            } else {
+                "route.goal".to_string()
+            };
+            finite(&field, &[p.x, p.y])?;
+            if map.clearance(*p, 10.0) < r.footprint_radius {
+                return fail(&field, "the point is inside or too close to an obstacle for the robot");
+            }
+        }
+        positive("route.arrival_tolerance", self.route.arrival_tolerance)?;
+        positive("route.waypoint_tolerance", self.route.waypoint_tolerance)?;
+
+        let p = &self.planner;
+        positive("planner.k_a", p.k_a)?;
+        positive("planner.k_r", p.k_r)?;
+        positive("planner.r_det", p.r_det)?;
+        positive("planner.attraction_saturation", p.attraction_saturation)?;
+        positive("planner.max_speed", p.max_speed)?;
+        positive("planner.max_turn_rate", p.max_turn_rate)?;
+        positive("planner.max_accel", p.max_accel)?;
+        positive("planner.heading_gain", p.heading_gain)?;
+        finite("planner.slot_weight", &[p.slot_weight])?;
+        positive("planner.follow_clearance", p.follow_clearance)?;
+        positive("planner.wait_for_followers_above", p.wait_for_followers_above)?;
+
+        let g = &self.follower;
+        positive("follower.k1", g.k1)?;
+        positive("follower.k2", g.k2)?;
+        positive("follower.d", g.d)?;
+        if g.leader_timeout_ms == 0 {
+            return fail("follower.leader_timeout_ms", "must be > 0");
+        }
+
+        let l = &self.link;
+        finite("link.latency_ms", &[l.latency_ms, l.jitter_ms])?;
+        if l.latency_ms < 0.0 || l.jitter_ms < 0.0 {
+            return fail("link.latency_ms", "latency and jitter must be ≥ 0");
+        }
+        fraction("link.loss", l.loss)?;
+        fraction("link.byte_corruption", l.byte_corruption)?;
+        if l.baud == 0 {
+            return fail("link.baud", "must be > 0");
+        }
+        let z = &self.localization;
+        finite("localization.sigma_m", &[z.sigma_m, z.heading_sigma_deg, z.latency_ms])?;
+        positive("localization.rate_hz", z.rate_hz)?;
+        positive("sim.duration_s", self.sim.duration_s)?;
+        if self.sim.physics_step_ms == 0 || 100 % self.sim.physics_step_ms != 0 {
+            return fail("sim.physics_step_ms", "must divide the 100 ms control period");
+        }
+        Ok(())
+    }
+
+    pub fn leader(&self) -> &RobotEntry {
+        self.robots
+            .iter()
+            .find(|r| r.role == Role::Leader)
+            .expect("validated: one leader")
+    }
+
+    /// Followers in id order: follower k takes slot k.
+    pub fn followers(&self) -> Vec<&RobotEntry> {
+        let mut f: Vec<_> = self.robots.iter().filter(|r| r.role == Role::Follower).collect();
+        f.sort_by_key(|r| r.id);
+        f
+    }
+
+    pub fn build_map(&self) -> Map {
+        Map::new(self.map.obstacles.iter().map(ObstacleSpec::to_obstacle).collect())
+    }
+
+    pub fn planner_params(&self) -> PlannerParams {
+        let p = &self.planner;
+        PlannerParams {
+            apf: ApfParams {
+                k_a: p.k_a,
+                k_r: p.k_r,
+                r_det: p.r_det,
+                attraction_saturation: p.attraction_saturation,
+                footprint: self.robot.footprint_radius,
+            },
+            max_speed: p.max_speed,
+            max_turn_rate: p.max_turn_rate,
+            max_accel: p.max_accel,
+            heading_gain: p.heading_gain,
+            arrival_tolerance: self.route.arrival_tolerance,
+            waypoint_tolerance: self.route.waypoint_tolerance,
+            slot_weight: p.slot_weight,
+            follow_clearance: p.follow_clearance,
+            ..PlannerParams::DEFAULT
+        }
+    }
+
+    pub fn formation_spec(&self) -> FormationSpec {
+        let f = &self.formation;
+        let wide = match f.shape {
+            ShapeName::Triangle | ShapeName::V => WideShape::V {
+                distance: f.distance,
+                angle: f.angle_deg.to_radians(),
+            },
+            ShapeName::Custom => WideShape::Custom(
+                f.slots
+                    .iter()
+                    .map(|s| (s.distance, s.angle_deg.to_radians()))
+                    .collect(),
+            ),
+        };
+        FormationSpec {
+            wide,
+            followers: self.followers().len(),
+            line_spacing: f.line_spacing,
+            margin: f.margin,
+            transition_s: f.transition_s,
+            min_dwell_s: f.min_dwell_s,
+            lookahead: f.lookahead,
+            footprint: self.robot.footprint_radius,
+        }
+    }
+
+    /// The wide shape's name in reports.
+    pub fn wide_name(&self) -> &'static str {
+        match self.formation.shape {
+            ShapeName::Triangle => "triangle",
+            ShapeName::V => "v",
+            ShapeName::Custom => "custom",
+        }
+    }
+}

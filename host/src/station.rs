@@ -1,0 +1,382 @@
+//! The base station's core: radio link, fleet status, planner and formation manager,
+//! stepped at 10 Hz with time passed in. The `run` command drives it from a serial
+//! modem or UDP and the wall clock; the simulator drives it from the simulated radio and
+//! the simulated clock. Same code, same bytes.
+
+use std::collections::BTreeMap;
+
+use glam::DVec2;
+use protocol::link::{Event, Link, Timing};
+use protocol::messages::{
+    FormationCommand, LeaderState, Message, Slot, Stop, Telemetry, VelocityCommand, WirePose,
+};
+use protocol::{units, Address, FleetKey, FrameDecoder, Reject, RejectCounts, MAX_WIRE};
+
+use crate::formation::{FormationManager, FormationSpec, Target};
+use crate::map::Map;
+use crate::planner::{Mode, PlanPose, Planner, PlannerParams};
+
+/// Most robots one base station serves.
+pub const MAX_ROBOTS: usize = 1024;
+
+/// Everything the station needs from the scenario or site file.
+#[derive(Debug, Clone)]
+pub struct StationConfig {
+    pub leader: u16,
+    /// In slot order: follower k takes slot k.
+    pub followers: Vec<u16>,
+    pub planner: PlannerParams,
+    pub formation: FormationSpec,
+    pub route: Vec<DVec2>,
+    pub map: Map,
+    pub track_width: f64,
+    pub initial_speed: f64,
+    /// Followers whose reported tracking error exceeds this slow the leader down, m.
+    pub wait_for_followers_above: f64,
+    /// Telemetry older than this is stale, ms.
+    pub telemetry_timeout_ms: u32,
+    /// Control period, ms.
+    pub period_ms: u32,
+}
+
+/// What the station knows of one robot.
+#[derive(Debug, Clone, Default)]
+pub struct RobotStatus {
+    pub telemetry: Option<Telemetry>,
+    /// Station clock when the telemetry arrived.
+    pub received_ms: u32,
+    /// Station clock at which the telemetry's pose was valid.
+    pub pose_at_ms: u32,
+}
+
+/// Something the operator (and the run's report) should know.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StationEvent {
+    Linked { robot: u16, at_ms: u32 },
+    Transformation { to: Target, at_ms: u32 },
+    LeaderLost { at_ms: u32 },
+    LeaderBack { at_ms: u32 },
+    Escape { at_ms: u32 },
+    Arrived { at_ms: u32 },
+}
+
+/// The leader as the station estimates it now.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeaderEstimate {
+    pub pose: PlanPose,
+    pub v: f64,
+    pub omega: f64,
+}
+
+pub struct BaseStation {
+    cfg: StationConfig,
+    link: Box<Link<MAX_ROBOTS>>,
+    decoder: FrameDecoder,
+    planner: Planner,
+    formation: FormationManager,
+    robots: BTreeMap<u16, RobotStatus>,
+    outbox: Vec<u8>,
+    last_slots_ms: Option<u32>,
+    events: Vec<StationEvent>,
+    leader_seen: bool,
+    leader_lost: bool,
+    escapes_seen: u32,
+    last_command: (f64, f64),
+}
+
+impl StationConfig {
+    pub fn from_scenario(s: &crate::scenario::Scenario) -> Self {
+        Self {
+            leader: s.leader().id,
+            followers: s.followers().iter().map(|r| r.id).collect(),
+            planner: s.planner_params(),
+            formation: s.formation_spec(),
+            route: s.route.points(),
+            map: s.build_map(),
+            track_width: s.robot.track_width,
+            initial_speed: s.leader().initial_speed,
+            wait_for_followers_above: s.planner.wait_for_followers_above,
+            telemetry_timeout_ms: s.follower.leader_timeout_ms,
+            period_ms: 100,
+        }
+    }
+}
+
+impl BaseStation {
+    /// `session`: fresh at every start (random); `nonce_base`: random.
+    pub fn new(cfg: StationConfig, key: FleetKey, session: u32, nonce_base: u64) -> Self {
+        let mut link = Box::new(Link::new(Address::Base, key, session, nonce_base, Timing::default()));
+        let mut robots = BTreeMap::new();
+        for id in std::iter::once(cfg.leader).chain(cfg.followers.iter().copied()) {
+            link.add_peer(Address::Robot(id));
+            robots.insert(id, RobotStatus::default());
+        }
+        let planner = Planner::new(cfg.planner, cfg.route.clone(), cfg.initial_speed);
+        let formation = FormationManager::new(cfg.formation.clone());
+        Self {
+            cfg,
+            link,
+            decoder: FrameDecoder::new(),
+            planner,
+            formation,
+            robots,
+            outbox: Vec::new(),
+            last_slots_ms: None,
+            events: Vec::new(),
+            leader_seen: false,
+            leader_lost: false,
+            escapes_seen: 0,
+            last_command: (0.0, 0.0),
+        }
+    }
+
+    pub fn config(&self) -> &StationConfig {
+        &self.cfg
+    }
+    pub fn link(&self) -> &Link<MAX_ROBOTS> {
+        &self.link
+    }
+    pub fn planner(&self) -> &Planner {
+        &self.planner
+    }
+    pub fn formation(&self) -> &FormationManager {
+        &self.formation
+    }
+    pub fn robots(&self) -> &BTreeMap<u16, RobotStatus> {
+        &self.robots
+    }
+    pub fn events(&self) -> &[StationEvent] {
+        &self.events
+    }
+    /// The last (v, ω) sent to the leader.
+    pub fn last_command(&self) -> (f64, f64) {
+        self.last_command
+    }
+
+    /// Rejected frames by reason, over the whole link.
+    pub fn rejects(&self) -> RejectCounts {
+        self.link.stats().rejects
+    }
+
+    /// Bytes to transmit, oldest first.
+    pub fn take_outbox(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.outbox)
+    }
+
+    fn send(&mut self, to: Address, now_ms: u32, message: &Message) {
+        let mut buf = [0u8; MAX_WIRE];
+        match self.link.send(to, now_ms, message, &mut buf) {
+            Ok(n) => self.outbox.extend_from_slice(&buf[..n]),
+            Err(e) => tracing::warn!(?to, "cannot send {}: {e}", message.name()),
+        }
+    }
+
+    /// Bytes from the radio.
+    pub fn receive(&mut self, bytes: &[u8], now_ms: u32) {
+        for &b in bytes {
+            let Some(frame) = self.decoder.push(b) else {
+                continue;
+            };
+            match self.link.receive(frame, now_ms) {
+                Ok(Event::Message { header, message }) => {
+                    if let (Address::Robot(id), Message::Telemetry(t)) = (header.from, message) {
+                        let offset = self
+                            .link
+                            .peer(header.from)
+                            .and_then(|p| p.clock_offset_ms)
+                            .unwrap_or(0);
+                        if let Some(status) = self.robots.get_mut(&id) {
+                            status.telemetry = Some(t);
+                            status.received_ms = now_ms;
+                            // Robot clock → ours; never later than now.
+                            let at = header.time_ms.wrapping_sub(offset as u32);
+                            status.pose_at_ms = if (now_ms.wrapping_sub(at) as i32) < 0 { now_ms } else { at };
+                        }
+                    }
+                }
+                Ok(Event::Challenged { from, nonce }) => {
+                    let mut buf = [0u8; MAX_WIRE];
+                    if let Ok(n) = self.link.answer(from, nonce, now_ms, &mut buf) {
+                        self.outbox.extend_from_slice(&buf[..n]);
+                    }
+                }
+                Ok(Event::Linked { peer }) => {
+                    if let Address::Robot(robot) = peer {
+                        tracing::info!(robot, "linked");
+                        self.events.push(StationEvent::Linked { robot, at_ms: now_ms });
+                        self.last_slots_ms = None;
+                    }
+                }
+                Ok(Event::Ignored) => {}
+                Err(reason) => tracing::debug!(%reason, "frame rejected"),
+            }
+        }
+    }
+
+    fn fresh(&self, id: u16, now_ms: u32) -> Option<&RobotStatus> {
+        self.robots.get(&id).filter(|s| {
+            s.telemetry.is_some() && now_ms.wrapping_sub(s.received_ms) <= self.cfg.telemetry_timeout_ms
+        })
+    }
+
+    /// The leader's pose predicted to `now_ms` from its latest telemetry.
+    pub fn leader_estimate(&self, now_ms: u32) -> Option<LeaderEstimate> {
+        let s = self.fresh(self.cfg.leader, now_ms)?;
+        let t = s.telemetry?;
+        let (x, y, heading) = t.pose.to_si();
+        let vl = units::from_milli_i16(t.wheel_mm_s[0]) as f64;
+        let vr = units::from_milli_i16(t.wheel_mm_s[1]) as f64;
+        let v = 0.5 * (vl + vr);
+        let omega = (vr - vl) / self.cfg.track_width;
+        let age = (now_ms.wrapping_sub(s.pose_at_ms) as f64 / 1000.0).clamp(0.0, 0.5);
+        let h0 = heading as f64;
+        let h1 = h0 + omega * age;
+        let mid = 0.5 * (h0 + h1);
+        let pos = DVec2::new(x as f64, y as f64) + DVec2::new(mid.cos(), mid.sin()) * v * age;
+        Some(LeaderEstimate {
+            pose: PlanPose {
+                position: pos,
+                heading: h1,
+            },
+            v,
+            omega,
+        })
+    }
+
+    /// Follower positions from fresh telemetry, in slot order.
+    pub fn follower_positions(&self, now_ms: u32) -> Vec<DVec2> {
+        self.cfg
+            .followers
+            .iter()
+            .filter_map(|id| self.fresh(*id, now_ms))
+            .filter_map(|s| s.telemetry)
+            .map(|t| {
+                let (x, y, _) = t.pose.to_si();
+                DVec2::new(x as f64, y as f64)
+            })
+            .collect()
+    }
+
+    /// One 10 Hz step: handshakes, planning, commands and leader state out.
+    pub fn step(&mut self, now_ms: u32) {
+        let mut buf = [0u8; MAX_WIRE];
+        while let Some(peer) = self.link.due_challenge(now_ms) {
+            match self.link.challenge(peer, now_ms, &mut buf) {
+                Ok(n) => self.outbox.extend_from_slice(&buf[..n]),
+                Err(_) => break,
+            }
+        }
+        let due_slots = self
+            .last_slots_ms
+            .is_none_or(|t| now_ms.wrapping_sub(t) >= 1000);
+        if due_slots {
+            self.send_slots(now_ms);
+            self.last_slots_ms = Some(now_ms);
+        }
+
+        let Some(leader) = self.leader_estimate(now_ms) else {
+            if !self.leader_seen {
+                return;
+            }
+            if !self.leader_lost {
+                self.leader_lost = true;
+                tracing::warn!("no fresh telemetry from the leader: fleet stops");
+                self.events.push(StationEvent::LeaderLost { at_ms: now_ms });
+            }
+            // Followers stop on their own when leader states stop; the leader stops when
+            // commands stop. A Stop makes it explicit.
+            self.send(Address::Broadcast, now_ms, &Message::Stop(Stop { reason: 1 }));
+            return;
+        };
+        self.leader_seen = true;
+        if self.leader_lost {
+            self.leader_lost = false;
+            self.events.push(StationEvent::LeaderBack { at_ms: now_ms });
+        }
+
+        let now_s = now_ms as f64 / 1000.0;
+        let followers = self.follower_positions(now_ms);
+        let escaping = matches!(self.planner.mode(), Mode::Escape { .. });
+        let before = self.formation.transformations().len();
+        let blend = self
+            .formation
+            .step(now_s, leader.pose, &followers, &self.cfg.map, escaping);
+        if self.formation.transformations().len() > before {
+            let to = self.formation.target();
+            tracing::info!(?to, "formation change");
+            self.events.push(StationEvent::Transformation { to, at_ms: now_ms });
+        }
+
+        let mut keep_clear = self.formation.slot_points(leader.pose);
+        keep_clear.extend(followers.iter().copied());
+        let worst = self
+            .cfg
+            .followers
+            .iter()
+            .filter_map(|id| self.fresh(*id, now_ms))
+            .filter_map(|s| s.telemetry)
+            .map(|t| t.tracking_error_mm as f64 / 1000.0)
+            .fold(0.0, f64::max);
+        let over = worst - self.cfg.wait_for_followers_above;
+        let speed_scale = if over > 0.0 { (1.0 - over / 0.5).max(0.2) } else { 1.0 };
+        let was_arrived = self.planner.arrived();
+        let cmd = self.planner.step(
+            now_s,
+            self.cfg.period_ms as f64 / 1000.0,
+            leader.pose,
+            &self.cfg.map,
+            &keep_clear,
+            speed_scale,
+        );
+        if self.planner.escapes() > self.escapes_seen {
+            self.escapes_seen = self.planner.escapes();
+            tracing::info!("planner: local minimum, following the boundary");
+            self.events.push(StationEvent::Escape { at_ms: now_ms });
+        }
+        if self.planner.arrived() && !was_arrived {
+            tracing::info!("goal reached");
+            self.events.push(StationEvent::Arrived { at_ms: now_ms });
+        }
+        self.last_command = (cmd.v, cmd.omega);
+        let command = Message::VelocityCommand(VelocityCommand {
+            v_mm_s: units::to_milli_i16(cmd.v as f32).unwrap_or(0),
+            omega_mrad_s: units::to_milli_i16(cmd.omega as f32).unwrap_or(0),
+        });
+        self.send(Address::Robot(self.cfg.leader), now_ms, &command);
+
+        let p = leader.pose;
+        if let Ok(pose) = WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32) {
+            let state = Message::LeaderState(LeaderState {
+                pose,
+                v_mm_s: units::to_milli_i16(leader.v as f32).unwrap_or(0),
+                omega_mrad_s: units::to_milli_i16(leader.omega as f32).unwrap_or(0),
+                blend: (blend.clamp(0.0, 1.0) * 255.0).round() as u8,
+            });
+            self.send(Address::Broadcast, now_ms, &state);
+        }
+    }
+
+    fn send_slots(&mut self, now_ms: u32) {
+        let n = self.cfg.followers.len();
+        for (k, id) in self.cfg.followers.clone().into_iter().enumerate() {
+            let slot = |(l, phi): (f64, f64)| Slot::from_si(l as f32, phi as f32).unwrap_or_default();
+            let cmd = Message::FormationCommand(FormationCommand {
+                followers: n.min(255) as u8,
+                index: k.min(255) as u8,
+                wide: slot(self.formation.wide_slots()[k]),
+                line: slot(self.formation.line_slots()[k]),
+            });
+            self.send(Address::Robot(id), now_ms, &cmd);
+        }
+    }
+
+    /// Tells every robot to brake and hold (the operator stops the run).
+    pub fn broadcast_stop(&mut self, now_ms: u32) {
+        self.send(Address::Broadcast, now_ms, &Message::Stop(Stop { reason: 0 }));
+    }
+
+    /// Counts a frame the byte decoder could not even deframe.
+    pub fn count_reject(&mut self, reason: Reject) {
+        self.link.count_reject(reason);
+    }
+}

@@ -1,0 +1,200 @@
+//! The operator's program as a user runs it: bad scenario files, decode on garbage.
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn basestation(args: &[&str], stdin: Option<&[u8]>) -> (i32, String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .args(args)
+        .env_remove("SWEEPER_FLEET_KEY")
+        .env_remove("SWEEPER_KEY_FILE")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut input = child.stdin.take().unwrap();
+    if let Some(bytes) = stdin {
+        input.write_all(bytes).unwrap();
+    }
+    drop(input);
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+const GOOD: &str = include_str!("../../scenarios/paper-obstacles.toml");
+
+fn check_text(name: &str, text: &str) -> (i32, String) {
+    let dir = std::env::temp_dir().join(format!("basestation-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    let (code, _, err) = basestation(&["check", path.to_str().unwrap()], None);
+    (code, err)
+}
+
+#[test]
+fn shipped_scenarios_check_clean() {
+    for name in ["paper-obstacles", "paper-passage"] {
+        let (code, out, err) = basestation(&["check", name], None);
+        assert_eq!(code, 0, "{err}");
+        assert!(out.contains("ok"));
+    }
+}
+
+#[test]
+fn bad_files_name_file_line_and_field() {
+    let cases: &[(&str, String, &str)] = &[
+        (
+            "type.toml",
+            GOOD.replacen("radius = 0.5", "radius = \"big\"", 1),
+            "type.toml:7:54: field `map.obstacles[0].radius`: invalid type: string \"big\", expected f64",
+        ),
+        (
+            "negative.toml",
+            GOOD.replacen("radius = 0.5", "radius = -1.0", 1),
+            "negative.toml:7:54: field `map.obstacles[0].radius`: must be a finite number > 0",
+        ),
+        (
+            "unknown.toml",
+            GOOD.replace("k2 = 0.3", "k2 = 0.3\nkp = 3"),
+            "field `follower.kp`: unknown field `kp`",
+        ),
+        (
+            "role.toml",
+            GOOD.replacen("role = \"follower\"", "role = \"folower\"", 1),
+            "role.toml:21:8: field `robots[1].role`: unknown variant `folower`",
+        ),
+        (
+            "two-leaders.toml",
+            GOOD.replacen("role = \"follower\"", "role = \"leader\"", 1),
+            "field `robots`: exactly one robot must have role = \"leader\", found 2",
+        ),
+        (
+            "goal.toml",
+            GOOD.replace("goal = [20.0, 20.0]", "goal = [4.5, 5.0]"),
+            "goal.toml:36:8: field `route.goal`: the point is inside or too close to an obstacle",
+        ),
+        (
+            "missing.toml",
+            GOOD.replace("shape = \"triangle\"\n", ""),
+            "field `formation`: missing field `shape`",
+        ),
+        ("syntax.toml", "name = \"x\"\n[map\n".to_string(), "syntax.toml:2:5: unclosed table"),
+        (
+            "nan.toml",
+            GOOD.replace("k_a = 1.0", "k_a = nan"),
+            "field `planner.k_a`: must be a finite number > 0",
+        ),
+    ];
+    for (name, text, expected) in cases {
+        let (code, err) = check_text(name, text);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(expected), "{name}:\n  got: {err}\n  expected: {expected}");
+    }
+    let (code, _, err) = basestation(&["check", "no-such-file.toml"], None);
+    assert_eq!(code, 1);
+    assert!(err.contains("no-such-file.toml: no such file"));
+}
+
+#[test]
+fn decode_prints_rejects_for_garbage_and_exits_cleanly() {
+    let mut garbage: Vec<u8> = (0..5000u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
+    garbage.extend([0u8; 3]);
+    let (code, out, err) = basestation(&["decode"], Some(&garbage));
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert!(!lines.is_empty());
+    assert!(lines.iter().all(|l| l["ok"] == false && l["reject"].is_string()));
+    assert!(err.contains("rejected"));
+}
+
+#[test]
+fn decode_reads_genuine_frames_and_verifies_with_the_key() {
+    use protocol::link::{Link, Timing};
+    use protocol::messages::*;
+    use protocol::{Address, FleetKey, MAX_WIRE};
+    let hex = "11".repeat(32);
+    let key = FleetKey::from_hex(&hex).unwrap();
+    let mut base: Link<2> = Link::new(Address::Base, key, 7, 1, Timing::default());
+    base.add_peer(Address::Robot(1));
+    let mut capture = Vec::new();
+    let mut buf = [0u8; MAX_WIRE];
+    let n = base.answer(Address::Robot(1), 99, 0, &mut buf).unwrap();
+    capture.extend_from_slice(&buf[..n]);
+    capture.extend_from_slice(b"\x05junk\x00");
+    let state = Message::LeaderState(LeaderState {
+        pose: WirePose::from_si(1.0, 2.0, 0.5).unwrap(),
+        v_mm_s: 400,
+        omega_mrad_s: 0,
+        blend: 0,
+    });
+    let n = base.send(Address::Broadcast, 100, &state, &mut buf).unwrap();
+    capture.extend_from_slice(&buf[..n]);
+
+    let (code, out, _) = basestation(&["decode", "-"], Some(&capture));
+    assert_eq!(code, 0);
+    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 3);
+    assert_eq!(lines[0]["message"], "Welcome");
+    assert_eq!(lines[0]["verified"], false);
+    assert_eq!(lines[1]["ok"], false);
+    assert_eq!(lines[2]["message"], "LeaderState");
+    assert_eq!(lines[2]["fields"]["LeaderState"]["v_mm_s"], 400);
+
+    let dir = std::env::temp_dir().join(format!("basestation-key-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let key_file = dir.join("fleet.key");
+    std::fs::write(&key_file, &hex).unwrap();
+    let (code, out, _) = basestation(&["decode", "--key-file", key_file.to_str().unwrap()], Some(&capture));
+    assert_eq!(code, 0);
+    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines[0]["verified"], true);
+    assert_eq!(lines[2]["verified"], true, "session learnt from the Welcome");
+
+    std::fs::write(&key_file, "22".repeat(32)).unwrap();
+    let (_, out, _) = basestation(&["decode", "--key-file", key_file.to_str().unwrap()], Some(&capture));
+    let first: serde_json::Value = serde_json::from_str(out.lines().next().unwrap()).unwrap();
+    assert_eq!(first["reject"], "bad_tag");
+}
+
+#[test]
+fn run_refuses_to_start_without_a_key() {
+    let (code, _, err) = basestation(&["run", "paper-obstacles", "--udp", "127.0.0.1:9"], None);
+    assert_eq!(code, 1);
+    assert!(err.contains("no fleet key"), "{err}");
+}
+
+#[test]
+fn run_over_udp_challenges_every_robot() {
+    use protocol::{frame, FrameDecoder, Message};
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(std::time::Duration::from_secs(5))).unwrap();
+    let addr = sock.local_addr().unwrap().to_string();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .args(["run", "paper-obstacles", "--udp", &addr, "--bind", "127.0.0.1:0", "--duration", "1"])
+        .env("SWEEPER_FLEET_KEY", "33".repeat(32))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut dec = FrameDecoder::new();
+    let mut hellos = std::collections::BTreeSet::new();
+    let mut buf = [0u8; 2048];
+    while hellos.len() < 3 {
+        let n = sock.recv(&mut buf).expect("datagrams from the base station");
+        for &b in &buf[..n] {
+            if let Some(Ok(raw)) = dec.push(b) {
+                if let Ok((h, Message::Hello(_))) = frame::parse_unverified(raw) {
+                    hellos.insert(format!("{:?}", h.to));
+                }
+            }
+        }
+    }
+    assert!(child.wait().unwrap().success());
+    assert_eq!(hellos.len(), 3);
+}

@@ -1,0 +1,145 @@
+//! Passage detection and the slot transition on synthetic maps.
+
+use glam::DVec2;
+use host::formation::{FormationManager, FormationSpec, Target, WideShape};
+use host::geometry::Obstacle;
+use host::map::Map;
+use host::planner::PlanPose;
+
+fn spec() -> FormationSpec {
+    FormationSpec {
+        wide: WideShape::V {
+            distance: 3.0,
+            angle: 150f64.to_radians(),
+        },
+        followers: 2,
+        line_spacing: 1.5,
+        margin: 0.5,
+        transition_s: 3.0,
+        min_dwell_s: 2.0,
+        lookahead: 5.0,
+        footprint: 0.3,
+    }
+}
+
+fn block(x0: f64, y0: f64, x1: f64, y1: f64) -> Obstacle {
+    Obstacle::Polygon {
+        points: vec![
+            DVec2::new(x0, y0),
+            DVec2::new(x1, y0),
+            DVec2::new(x1, y1),
+            DVec2::new(x0, y1),
+        ],
+    }
+}
+
+/// A wall across y with a gap of `width` centred on y = 10, x ∈ [12, 18].
+fn gap(width: f64) -> Map {
+    Map::new(vec![
+        block(12.0, -10.0, 18.0, 10.0 - width / 2.0),
+        block(12.0, 10.0 + width / 2.0, 18.0, 30.0),
+    ])
+}
+
+struct Run {
+    events: Vec<(Target, f64, f64)>,
+    line_done_at_x: Option<f64>,
+}
+
+/// The leader drives along y = 10 (+ a small weave) at 0.4 m/s; followers sit on their
+/// slot points. Records each transformation with the leader's x and time.
+fn drive(map: &Map, weave: f64) -> Run {
+    let mut fm = FormationManager::new(spec());
+    let mut run = Run {
+        events: vec![],
+        line_done_at_x: None,
+    };
+    let dt = 0.1;
+    for i in 0..1000 {
+        let t = i as f64 * dt;
+        let x = 2.0 + 0.4 * t;
+        let heading = weave * (t * 0.8).sin();
+        let leader = PlanPose {
+            position: DVec2::new(x, 10.0 + weave * (t * 0.8).cos()),
+            heading,
+        };
+        let followers = fm.slot_points(leader);
+        let before = fm.transformations().len();
+        fm.step(t, leader, &followers, map, false);
+        if fm.transformations().len() > before {
+            run.events.push((fm.target(), t, x));
+        }
+        if fm.blend() >= 1.0 && run.line_done_at_x.is_none() {
+            run.line_done_at_x = Some(x);
+        }
+    }
+    run
+}
+
+#[test]
+fn three_metre_gap_becomes_a_line_and_back() {
+    let run = drive(&gap(3.0), 0.0);
+    println!("3 m gap: {:?}, line complete at x = {:?}", run.events, run.line_done_at_x);
+    let targets: Vec<_> = run.events.iter().map(|e| e.0).collect();
+    assert_eq!(targets, vec![Target::Line, Target::Wide]);
+    // In line before the leader enters the gap at x = 12.
+    assert!(run.line_done_at_x.unwrap() < 12.0);
+    // Back to wide only after the last follower (3 m behind in the line) left at x = 18.
+    assert!(run.events[1].2 - 3.0 > 18.0);
+}
+
+#[test]
+fn six_metre_gap_stays_a_triangle() {
+    let run = drive(&gap(6.0), 0.0);
+    assert!(run.events.is_empty(), "{:?}", run.events);
+}
+
+#[test]
+fn no_flapping_at_the_boundary() {
+    // Widths around the threshold (3.6 m formation + 0.5 m margin), leader weaving.
+    for width in [4.0, 4.05, 4.1, 4.15, 4.2, 4.4] {
+        let run = drive(&gap(width), 0.15);
+        assert!(run.events.len() <= 2, "width {width}: {:?}", run.events);
+    }
+}
+
+#[test]
+fn slots_move_without_jumps() {
+    let mut fm = FormationManager::new(spec());
+    let map = gap(3.0);
+    let mut last: Option<Vec<DVec2>> = None;
+    for i in 0..600 {
+        let t = i as f64 * 0.1;
+        let leader = PlanPose {
+            position: DVec2::new(2.0 + 0.4 * t, 10.0),
+            heading: 0.0,
+        };
+        fm.step(t, leader, &fm.slot_points(leader), &map, false);
+        let pts = fm.slot_points(leader);
+        if let Some(prev) = &last {
+            for (a, b) in prev.iter().zip(&pts) {
+                // Leader motion (0.04 m) plus the slot's own motion in one period.
+                assert!((*a - *b).length() < 0.15, "jump at t = {t}");
+            }
+        }
+        last = Some(pts);
+    }
+}
+
+#[test]
+fn v_slots_for_five_followers() {
+    let s = FormationSpec {
+        followers: 5,
+        ..spec()
+    };
+    let slots = s.wide_slots();
+    assert_eq!(slots.len(), 5);
+    assert!((slots[0].0 - 3.0).abs() < 1e-12 && slots[0].1 > 0.0);
+    assert!((slots[1].0 - 3.0).abs() < 1e-12 && slots[1].1 < 0.0);
+    assert!((slots[2].0 - 6.0).abs() < 1e-12);
+    assert!((slots[4].0 - 9.0).abs() < 1e-12);
+    let line = s.line_slots();
+    assert!((line[4].0 - 7.5).abs() < 1e-12);
+    // 3.6 m for the paper's triangle: 2·3·sin 30° + 2·0.3.
+    assert!((spec().wide_width() - 3.6).abs() < 1e-9);
+}
