@@ -94,7 +94,10 @@ fn bad_files_name_file_line_and_field() {
     for (name, text, expected) in cases {
         let (code, err) = check_text(name, text);
         assert_eq!(code, 1, "{name}: {err}");
-        assert!(err.contains(expected), "{name}:\n  got: {err}\n  expected: {expected}");
+        assert!(
+            err.contains(expected),
+            "{name}:\n  got: {err}\n  expected: {expected}"
+        );
     }
     let (code, _, err) = basestation(&["check", "no-such-file.toml"], None);
     assert_eq!(code, 1);
@@ -103,13 +106,20 @@ fn bad_files_name_file_line_and_field() {
 
 #[test]
 fn decode_prints_rejects_for_garbage_and_exits_cleanly() {
-    let mut garbage: Vec<u8> = (0..5000u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
+    let mut garbage: Vec<u8> = (0..5000u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
     garbage.extend([0u8; 3]);
     let (code, out, err) = basestation(&["decode"], Some(&garbage));
     assert_eq!(code, 0, "{err}");
-    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let lines: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     assert!(!lines.is_empty());
-    assert!(lines.iter().all(|l| l["ok"] == false && l["reject"].is_string()));
+    assert!(lines
+        .iter()
+        .all(|l| l["ok"] == false && l["reject"].is_string()));
     assert!(err.contains("rejected"));
 }
 
@@ -133,12 +143,17 @@ fn decode_reads_genuine_frames_and_verifies_with_the_key() {
         omega_mrad_s: 0,
         blend: 0,
     });
-    let n = base.send(Address::Broadcast, 100, &state, &mut buf).unwrap();
+    let n = base
+        .send(Address::Broadcast, 100, &state, &mut buf)
+        .unwrap();
     capture.extend_from_slice(&buf[..n]);
 
     let (code, out, _) = basestation(&["decode", "-"], Some(&capture));
     assert_eq!(code, 0);
-    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let lines: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     assert_eq!(lines.len(), 3);
     assert_eq!(lines[0]["message"], "Welcome");
     assert_eq!(lines[0]["verified"], false);
@@ -150,14 +165,26 @@ fn decode_reads_genuine_frames_and_verifies_with_the_key() {
     std::fs::create_dir_all(&dir).unwrap();
     let key_file = dir.join("fleet.key");
     std::fs::write(&key_file, &hex).unwrap();
-    let (code, out, _) = basestation(&["decode", "--key-file", key_file.to_str().unwrap()], Some(&capture));
+    let (code, out, _) = basestation(
+        &["decode", "--key-file", key_file.to_str().unwrap()],
+        Some(&capture),
+    );
     assert_eq!(code, 0);
-    let lines: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let lines: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     assert_eq!(lines[0]["verified"], true);
-    assert_eq!(lines[2]["verified"], true, "session learnt from the Welcome");
+    assert_eq!(
+        lines[2]["verified"], true,
+        "session learnt from the Welcome"
+    );
 
     std::fs::write(&key_file, "22".repeat(32)).unwrap();
-    let (_, out, _) = basestation(&["decode", "--key-file", key_file.to_str().unwrap()], Some(&capture));
+    let (_, out, _) = basestation(
+        &["decode", "--key-file", key_file.to_str().unwrap()],
+        Some(&capture),
+    );
     let first: serde_json::Value = serde_json::from_str(out.lines().next().unwrap()).unwrap();
     assert_eq!(first["reject"], "bad_tag");
 }
@@ -173,10 +200,20 @@ fn run_refuses_to_start_without_a_key() {
 fn run_over_udp_challenges_every_robot() {
     use protocol::{frame, FrameDecoder, Message};
     let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-    sock.set_read_timeout(Some(std::time::Duration::from_secs(5))).unwrap();
+    sock.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+        .unwrap();
     let addr = sock.local_addr().unwrap().to_string();
     let mut child = Command::new(env!("CARGO_BIN_EXE_basestation"))
-        .args(["run", "paper-obstacles", "--udp", &addr, "--bind", "127.0.0.1:0", "--duration", "1"])
+        .args([
+            "run",
+            "paper-obstacles",
+            "--udp",
+            &addr,
+            "--bind",
+            "127.0.0.1:0",
+            "--duration",
+            "1",
+        ])
         .env("SWEEPER_FLEET_KEY", "33".repeat(32))
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -186,7 +223,9 @@ fn run_over_udp_challenges_every_robot() {
     let mut hellos = std::collections::BTreeSet::new();
     let mut buf = [0u8; 2048];
     while hellos.len() < 3 {
-        let n = sock.recv(&mut buf).expect("datagrams from the base station");
+        let n = sock
+            .recv(&mut buf)
+            .expect("datagrams from the base station");
         for &b in &buf[..n] {
             if let Some(Ok(raw)) = dec.push(b) {
                 if let Ok((h, Message::Hello(_))) = frame::parse_unverified(raw) {

@@ -156,9 +156,9 @@ impl Slot {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FormationCommand {
     /// Number of followers in the formation.
-    pub followers: u8,
+    pub followers: u16,
     /// This follower's index, 0-based (its line slot is (index + 1)·D behind).
-    pub index: u8,
+    pub index: u16,
     pub wide: Slot,
     pub line: Slot,
 }

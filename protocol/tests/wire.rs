@@ -82,7 +82,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                     },
                 })
             }),
-        (any::<u8>(), any::<u8>(), arb_slot(), arb_slot()).prop_map(|(n, i, wide, line)| {
+        (any::<u16>(), any::<u16>(), arb_slot(), arb_slot()).prop_map(|(n, i, wide, line)| {
             Message::FormationCommand(FormationCommand {
                 followers: n,
                 index: i,

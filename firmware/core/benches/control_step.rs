@@ -28,6 +28,7 @@ fn bench(c: &mut Criterion) {
         &Sensors {
             ticks: [0, 0],
             pose_fix: Some(fix(0)),
+            proximity: [None, None],
         },
     );
     let mut t = 0u32;
@@ -46,6 +47,7 @@ fn bench(c: &mut Criterion) {
             let sensors = Sensors {
                 ticks,
                 pose_fix: Some(fix(t - 30)),
+                proximity: [None, None],
             };
             black_box(ctl.step(t, &sensors))
         })

@@ -76,6 +76,10 @@ pub struct RobotConfig {
     pub fix_gain: f32,
     /// A fix farther than this from the odometry (plus 3σ) is an outlier, m.
     pub fix_gate: f32,
+    /// The proximity layer stops the robot this far from what its sensors see, m.
+    pub proximity_stop: f32,
+    /// Speed allowed per metre of free distance beyond `proximity_stop`, 1/s.
+    pub proximity_gain: f32,
 }
 
 impl RobotConfig {
@@ -84,11 +88,11 @@ impl RobotConfig {
         drive: DiffDrive {
             track_width: 0.4,
             wheel_radius: 0.08,
-            max_wheel_speed: 1.0,
+            max_wheel_speed: 1.1,
         },
         ticks_per_rev: 2048,
         limits: Limits {
-            max_v: 0.8,
+            max_v: 1.0,
             max_reverse: 0.3,
             max_omega: 1.5,
             max_accel: 1.0,
@@ -117,6 +121,8 @@ impl RobotConfig {
         joining_above: 0.30,
         fix_gain: 0.25,
         fix_gate: 0.5,
+        proximity_stop: 0.15,
+        proximity_gain: 1.0,
     };
 
     pub fn period_s(&self) -> f32 {

@@ -40,6 +40,9 @@ pub struct Sensors {
     pub ticks: [i32; 2],
     /// A pose fix from the localization system, if one arrived.
     pub pose_fix: Option<PoseFixSample>,
+    /// Free distance to the nearest thing in front of and behind the footprint (the
+    /// ultrasonic ring), m; `None` when nothing is in range.
+    pub proximity: [Option<f32>; 2],
 }
 
 /// Motor duties, left then right, each in [-1, 1]. Always finite.
@@ -236,6 +239,7 @@ impl Controller {
             faults |= faults::POSE_FIX_STALE;
         }
         let (mode, target) = self.decide(now_ms, dt, &mut faults);
+        let target = self.keep_distance(target, &sensors.proximity);
         if self.emergency {
             faults |= faults::EMERGENCY_STOP;
         }
@@ -389,6 +393,24 @@ impl Controller {
             v,
             omega: math::clamp(t.omega, -l.max_omega, l.max_omega),
         }
+    }
+
+    /// The local safety layer: whatever the law or the base station asks, the robot does
+    /// not drive into what its proximity sensors see. Speed toward an obstacle is capped
+    /// at `proximity_gain · (free − proximity_stop)`, so it closes in exponentially and
+    /// stops short.
+    fn keep_distance(&self, t: Twist, proximity: &[Option<f32>; 2]) -> Twist {
+        let cap = |free: Option<f32>| {
+            free.map_or(f32::INFINITY, |d| {
+                ((d - self.cfg.proximity_stop) * self.cfg.proximity_gain).max(0.0)
+            })
+        };
+        let v = math::clamp(t.v, -cap(proximity[1]), cap(proximity[0]));
+        if v == t.v || t.v == 0.0 {
+            return t;
+        }
+        // ω is kept: turning away from the obstacle stays possible.
+        Twist { v, omega: t.omega }
     }
 
     /// The next step of a stop: slow down at the braking rate along the same arc.

@@ -79,6 +79,7 @@ fn follower_links_follows_and_reports() {
                 sigma: 0.02,
                 time_ms: now,
             }),
+            proximity: [None, None],
         };
         node.tick(now, &sensors, &mut |b| to_base.extend_from_slice(b));
     }

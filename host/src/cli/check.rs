@@ -1,7 +1,7 @@
 //! `basestation check SCENARIO`: validate a file and print what it describes.
 
+use base_station::scenario::Role;
 use clap::Args;
-use host::scenario::Role;
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
@@ -33,7 +33,12 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     );
     let route = s.route.points();
     let last = route.last().expect("validated");
-    println!("route       {} point(s), goal ({:.2}, {:.2})", route.len(), last.x, last.y);
+    println!(
+        "route       {} point(s), goal ({:.2}, {:.2})",
+        route.len(),
+        last.x,
+        last.y
+    );
     println!(
         "gains       k1 {} k2 {} d {} | k_a {} k_r {} R_det {}",
         s.follower.k1, s.follower.k2, s.follower.d, s.planner.k_a, s.planner.k_r, s.planner.r_det

@@ -7,14 +7,20 @@ pub mod run;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
+use base_station::scenario::Scenario;
 use clap::Args;
-use host::scenario::Scenario;
 use protocol::FleetKey;
 
 /// The scenarios shipped with the program, by name.
 pub const SHIPPED: &[(&str, &str)] = &[
-    ("paper-obstacles", include_str!("../../../scenarios/paper-obstacles.toml")),
-    ("paper-passage", include_str!("../../../scenarios/paper-passage.toml")),
+    (
+        "paper-obstacles",
+        include_str!("../../../scenarios/paper-obstacles.toml"),
+    ),
+    (
+        "paper-passage",
+        include_str!("../../../scenarios/paper-passage.toml"),
+    ),
 ];
 
 /// A scenario from a file, or a shipped one by name.
@@ -46,7 +52,8 @@ impl KeyArgs {
         if let Some(path) = &self.key_file {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("cannot read the key file {}", path.display()))?;
-            let key = FleetKey::from_hex(&text).with_context(|| format!("key file {}", path.display()))?;
+            let key = FleetKey::from_hex(&text)
+                .with_context(|| format!("key file {}", path.display()))?;
             return Ok(Some(key));
         }
         if let Ok(hex) = std::env::var("SWEEPER_FLEET_KEY") {

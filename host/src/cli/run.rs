@@ -10,9 +10,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
+use base_station::station::{BaseStation, StationConfig};
+use base_station::transport::{Serial, Transport, Udp};
 use clap::Args;
-use host::station::{BaseStation, StationConfig};
-use host::transport::{Serial, Transport, Udp};
 
 #[derive(Args, Debug)]
 pub struct RunArgs {
@@ -42,17 +42,24 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         bail!("no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY (64 hex digits)");
     };
     let mut transport: Box<dyn Transport> = match (&args.port, args.udp) {
-        (Some(port), _) => Box::new(
-            Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?,
-        ),
-        (None, Some(peer)) => Box::new(Udp::open(args.bind, peer).context("cannot open the UDP socket")?),
+        (Some(port), _) => {
+            Box::new(Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?)
+        }
+        (None, Some(peer)) => {
+            Box::new(Udp::open(args.bind, peer).context("cannot open the UDP socket")?)
+        }
         (None, None) => unreachable!("clap requires --port or --udp"),
     };
     let mut random = [0u8; 12];
     getrandom::fill(&mut random).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
     let session = u32::from_le_bytes(random[..4].try_into().expect("4 bytes"));
     let nonce_base = u64::from_le_bytes(random[4..].try_into().expect("8 bytes"));
-    let mut station = BaseStation::new(StationConfig::from_scenario(&scenario), key, session, nonce_base);
+    let mut station = BaseStation::new(
+        StationConfig::from_scenario(&scenario),
+        key,
+        session,
+        nonce_base,
+    );
 
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();

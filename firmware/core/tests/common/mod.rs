@@ -39,6 +39,7 @@ impl Body {
                 sigma: 0.0,
                 time_ms: t,
             }),
+            proximity: [None, None],
         }
     }
 

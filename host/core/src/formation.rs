@@ -8,9 +8,13 @@
 //! - **Passage ahead**: at points every 0.25 m along the leader's heading up to `lookahead`,
 //!   rays to the left and right measure the free width. Narrower than the wide formation
 //!   (its lateral extent plus footprints) plus `margin` → transform to the line.
-//! - **Back to wide** when nothing narrow lies ahead of the leader *and* every follower's
-//!   own position is in the open (hysteresis: `margin + 0.5 m`), and the line has been held
-//!   for `min_dwell_s`. So the shape does not flap at the boundary.
+//! - **Back to wide** once every follower (its position and its slot) is past the far end
+//!   of the narrow stretch seen (by 1 m, along the leader's heading), nothing narrow lies
+//!   ahead of the leader (hysteresis: `margin + 0.5 m`), and the line has been held for
+//!   `min_dwell_s`. So the shape does not flap at the boundary.
+//! - While the slots move, the leader slows to `TRANSFORM_SPEED` of its speed: the
+//!   followers' slot points move up to 1.9 m relative to the leader, and the followers'
+//!   speed is bounded.
 //! - **Smooth**: the blend (0 wide … 1 line) follows a smoothstep over `transition_s`, so
 //!   the followers' slot points never jump.
 
@@ -98,8 +102,18 @@ pub struct FormationManager {
     from_blend: f64,
     transition_start: Option<f64>,
     line_since: Option<f64>,
+    /// The far end of the narrow stretch seen while heading for or holding the line.
+    passage_end: Option<DVec2>,
     events: Vec<Transformation>,
 }
+
+/// The leader's speed factor while the slots move.
+pub const TRANSFORM_SPEED: f64 = 0.4;
+/// How far past the narrow stretch every follower must be before the wide shape returns, m.
+const EXIT_MARGIN: f64 = 1.0;
+
+/// Ray angles from the side normal, degrees (toward the front and the back).
+const FAN: [f64; 5] = [-45.0, -22.5, 0.0, 22.5, 45.0];
 
 fn smoothstep(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
@@ -117,6 +131,7 @@ impl FormationManager {
             from_blend: 0.0,
             transition_start: None,
             line_since: None,
+            passage_end: None,
             events: Vec::new(),
         }
     }
@@ -149,6 +164,17 @@ impl FormationManager {
         (p.length(), p.y.atan2(p.x))
     }
 
+    /// The formation's lateral half-width at the current blend (slot centres, without
+    /// footprints), m.
+    pub fn half_width(&self) -> f64 {
+        (0..self.spec.followers)
+            .map(|k| {
+                let (l, phi) = self.slot(k);
+                (l * phi.sin()).abs()
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// The slot points in the world for a leader pose.
     pub fn slot_points(&self, leader: PlanPose) -> Vec<DVec2> {
         (0..self.spec.followers)
@@ -160,19 +186,47 @@ impl FormationManager {
             .collect()
     }
 
-    /// Free width across `dir` at `p`, looking at most `reach` to each side.
-    fn width(&self, map: &Map, p: DVec2, dir: DVec2, reach: f64) -> f64 {
+    /// Whether `p` lies in a passage narrower than `need` across `dir`: obstacles on
+    /// both sides within `need` and less than `need` between them. A point inside or
+    /// touching an obstacle is not a passage (that obstacle is in the way: the planner's
+    /// business).
+    fn is_narrow(&self, map: &Map, p: DVec2, dir: DVec2, need: f64) -> bool {
+        if map.clearance(p, need) < self.spec.footprint {
+            return false;
+        }
+        // A fan of rays to each side; what counts is the lateral distance, so that round
+        // obstacles beside the path are seen even when no ray hits them square on.
         let n = dir.perp();
-        map.ray_cast(p, n, reach) + map.ray_cast(p, -n, reach)
+        let side = |sign: f64| {
+            FAN.iter()
+                .map(|deg: &f64| {
+                    let (s, c) = deg.to_radians().sin_cos();
+                    let ray = (n * c + dir * s) * sign;
+                    map.ray_cast(p, ray, need / c) * c
+                })
+                .fold(need, f64::min)
+        };
+        let (left, right) = (side(1.0), side(-1.0));
+        left < need && right < need && left + right < need
     }
 
-    fn narrow_ahead(&self, map: &Map, leader: PlanPose, need: f64) -> bool {
+    /// The farthest narrow point within the lookahead, if any.
+    fn narrow_ahead(&self, map: &Map, leader: PlanPose, need: f64) -> Option<DVec2> {
         let dir = DVec2::new(leader.heading.cos(), leader.heading.sin());
         let steps = (self.spec.lookahead / 0.25).ceil() as usize;
-        (0..=steps).any(|i| {
-            let p = leader.position + dir * (i as f64 * 0.25);
-            self.width(map, p, dir, need) < need
-        })
+        (0..=steps)
+            .rev()
+            .map(|i| leader.position + dir * (i as f64 * 0.25))
+            .find(|p| self.is_narrow(map, *p, dir, need))
+    }
+
+    /// The leader's speed factor: slower while the slots move.
+    pub fn speed_factor(&self) -> f64 {
+        if self.transition_start.is_some() {
+            TRANSFORM_SPEED
+        } else {
+            1.0
+        }
     }
 
     /// One step. `followers`: their positions where known. `force_line`: the planner
@@ -188,9 +242,12 @@ impl FormationManager {
         let wide = self.spec.wide_width();
         let need_in = wide + self.spec.margin;
         let need_out = need_in + 0.5;
+        let dir = DVec2::new(leader.heading.cos(), leader.heading.sin());
         match self.target {
             Target::Wide => {
-                if force_line || self.narrow_ahead(map, leader, need_in) {
+                let narrow = self.narrow_ahead(map, leader, need_in);
+                if force_line || narrow.is_some() {
+                    self.passage_end = narrow;
                     self.switch(Target::Line, now_s);
                 }
             }
@@ -198,16 +255,28 @@ impl FormationManager {
                 if self.blend >= 1.0 && self.line_since.is_none() {
                     self.line_since = Some(now_s);
                 }
+                let ahead = self.narrow_ahead(map, leader, need_out);
+                if let Some(p) = ahead {
+                    let further = self.passage_end.is_none_or(|e| (p - e).dot(dir) > 0.0);
+                    if further {
+                        self.passage_end = Some(p);
+                    }
+                }
                 let dwelt = self
                     .line_since
                     .is_some_and(|t| now_s - t >= self.spec.min_dwell_s);
-                let dir = DVec2::new(leader.heading.cos(), leader.heading.sin());
+                let slots = self.slot_points(leader);
+                let past = |f: &DVec2| {
+                    self.passage_end
+                        .is_none_or(|e| (*f - e).dot(dir) > EXIT_MARGIN)
+                        && !self.is_narrow(map, *f, dir, need_out)
+                };
                 let open = !force_line
-                    && !self.narrow_ahead(map, leader, need_out)
-                    && followers
-                        .iter()
-                        .all(|f| self.width(map, *f, dir, need_out) >= need_out);
+                    && ahead.is_none()
+                    && followers.iter().all(past)
+                    && slots.iter().all(past);
                 if dwelt && open {
+                    self.passage_end = None;
                     self.switch(Target::Wide, now_s);
                 }
             }

@@ -1,10 +1,16 @@
 //! The leader's planner: the APF toward the route's next waypoint, with the whole
 //! formation's footprint in the field, and a way out of local minima.
 //!
-//! - **Cohesion**: the repulsion is also evaluated at every follower's slot point and
-//!   actual position, and applied to the leader (`slot_weight` each). The leader thus
-//!   keeps the whole formation clear, not just itself: with the paper's method as written
-//!   the followers clip what the leader passed.
+//! - **Cohesion**: the leader's field treats the leader as wide as the formation: the
+//!   clearance in the repulsion is measured from the robot's footprint **inflated by the
+//!   formation's lateral half-width** (which shrinks smoothly to 0 as the formation becomes
+//!   a line). The leader thus keeps the whole formation clear, not just itself: with the
+//!   paper's method as written the followers clip what the leader passed. We first
+//!   evaluated the repulsion at the followers' slot points and applied it to the leader;
+//!   in the simulated passage that loop is unstable (a force on a rear slot turns the
+//!   leader, which swings the slot further toward the wall) and we dropped it. The
+//!   followers add their own local layer: a proximity sensor caps their speed near
+//!   anything in front of them (`control-core`).
 //! - **Stuck or oscillating** (a U-shaped trap, an obstacle right before the goal, a gap
 //!   that makes the heading swing): the distance to the goal improved by less than
 //!   `stuck_progress` over `stuck_window_s`, or the heading error changed sign
@@ -38,8 +44,6 @@ pub struct PlannerParams {
     pub arrival_tolerance: f64,
     /// Intermediate waypoints are passed within this distance, m.
     pub waypoint_tolerance: f64,
-    /// Weight of the repulsion at each follower's slot point and position.
-    pub slot_weight: f64,
     pub stuck_window_s: f64,
     pub stuck_progress: f64,
     pub oscillation_flips: usize,
@@ -57,7 +61,6 @@ impl PlannerParams {
         heading_gain: 1.2,
         arrival_tolerance: 0.3,
         waypoint_tolerance: 1.0,
-        slot_weight: 1.0,
         stuck_window_s: 8.0,
         stuck_progress: 0.5,
         oscillation_flips: 8,
@@ -103,6 +106,7 @@ pub struct Planner {
     progress: VecDeque<(f64, f64, f64)>,
     v: f64,
     escapes: u32,
+    inflation: f64,
 }
 
 /// The robot's pose as the planner sees it.
@@ -133,6 +137,7 @@ impl Planner {
             progress: VecDeque::new(),
             v: initial_speed,
             escapes: 0,
+            inflation: 0.0,
         }
     }
 
@@ -157,15 +162,15 @@ impl Planner {
         self.mode == Mode::Arrived
     }
 
-    /// One planning step. `formation`: follower slot points and positions whose clearance
-    /// the leader must keep; `speed_scale` in [0, 1] slows the leader (followers lagging).
+    /// One planning step. `half_width`: the formation's lateral half-width (0 for a line),
+    /// added to the footprint; `speed_scale` in [0, 1] slows the leader (followers lagging).
     pub fn step(
         &mut self,
         now_s: f64,
         dt: f64,
         pose: PlanPose,
         map: &Map,
-        formation: &[DVec2],
+        half_width: f64,
         speed_scale: f64,
     ) -> Command {
         let p = self.params;
@@ -173,7 +178,11 @@ impl Planner {
         // Waypoints.
         while let Some(w) = self.current_waypoint() {
             let last = self.next + 1 == self.route.len();
-            let tol = if last { p.arrival_tolerance } else { p.waypoint_tolerance };
+            let tol = if last {
+                p.arrival_tolerance
+            } else {
+                p.waypoint_tolerance
+            };
             if (w - pos).length() > tol {
                 break;
             }
@@ -199,7 +208,8 @@ impl Planner {
         let to_goal = goal - pos;
         let distance = to_goal.length();
 
-        let field = self.field(pos, goal, is_last, map, formation);
+        self.inflation = half_width.max(0.0);
+        let field = self.field(pos, goal, is_last, map);
         let field_dir = field.normalize_or_zero();
         let heading_err_field = wrap(field_dir.y.atan2(field_dir.x) - pose.heading);
         self.watch(now_s, distance, heading_err_field);
@@ -233,9 +243,16 @@ impl Planner {
                         entry_distance,
                         since_s,
                         best_distance,
-                        best_at_s: if side != self.escape_side() { now_s } else { best_at_s },
+                        best_at_s: if side != self.escape_side() {
+                            now_s
+                        } else {
+                            best_at_s
+                        },
                     };
-                    (self.boundary_direction(pos, side, map).unwrap_or(field_dir), 0.7)
+                    (
+                        self.boundary_direction(pos, side, map).unwrap_or(field_dir),
+                        0.7,
+                    )
                 }
             }
             _ => (field_dir, (field.length() / p.apf.k_a).min(1.0)),
@@ -265,18 +282,28 @@ impl Planner {
         }
     }
 
+    /// The footprint the field sees: the robot's, inflated to the formation's width.
+    fn apf(&self) -> ApfParams {
+        ApfParams {
+            footprint: self.params.apf.footprint + self.inflation,
+            ..self.params.apf
+        }
+    }
+
     /// The potential field's force on the formation, applied at the leader.
-    fn field(&self, pos: DVec2, goal: DVec2, is_last: bool, map: &Map, formation: &[DVec2]) -> DVec2 {
-        let a = &self.params.apf;
+    fn field(&self, pos: DVec2, goal: DVec2, is_last: bool, map: &Map) -> DVec2 {
+        let a = &self.apf();
         let attraction = if is_last {
             apf::attraction(pos, goal, a)
         } else {
             (goal - pos).normalize_or_zero() * a.k_a * a.attraction_saturation
         };
-        let scale = if is_last { apf::goal_scale(pos, goal, a) } else { 1.0 };
-        let own = apf::repulsion(pos, map, a);
-        let others: DVec2 = formation.iter().map(|q| apf::repulsion(*q, map, a)).sum();
-        attraction + (own + others * self.params.slot_weight) * scale
+        let scale = if is_last {
+            apf::goal_scale(pos, goal, a)
+        } else {
+            1.0
+        };
+        attraction + apf::repulsion(pos, map, a) * scale
     }
 
     /// Records progress and enters an escape when stuck or oscillating.
@@ -304,7 +331,8 @@ impl Planner {
             .zip(self.progress.iter().skip(1))
             .filter(|(a, b)| a.2.abs() > 0.05 && b.2.abs() > 0.05 && a.2.signum() != b.2.signum())
             .count();
-        let oscillating = flips >= self.params.oscillation_flips && d0 - distance < 2.0 * self.params.stuck_progress;
+        let oscillating = flips >= self.params.oscillation_flips
+            && d0 - distance < 2.0 * self.params.stuck_progress;
         if stalled || oscillating {
             self.mode = Mode::Escape {
                 side: 0.0,
@@ -322,12 +350,16 @@ impl Planner {
     /// of an escape (side 0) it picks the side that turns toward the goal.
     fn boundary_direction(&mut self, pos: DVec2, side: f64, map: &Map) -> Option<DVec2> {
         let p = self.params;
-        let a = &p.apf;
+        let a = &self.apf();
         let n = map.nearest(pos, a.r_det * 2.0 + a.footprint)?;
         let tangent_left = n.normal.perp();
         let side = if side == 0.0 {
             let goal = self.current_waypoint().unwrap_or(pos);
-            let s = if tangent_left.dot(goal - pos) >= 0.0 { 1.0 } else { -1.0 };
+            let s = if tangent_left.dot(goal - pos) >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            };
             if let Mode::Escape { side, .. } = &mut self.mode {
                 *side = s;
             }
@@ -348,7 +380,7 @@ impl Planner {
         }
         let dir = to_goal / d;
         let reach = d.min(3.0);
-        let w = self.params.apf.footprint + 0.1;
+        let w = self.apf().footprint + 0.1;
         [-w, 0.0, w]
             .iter()
             .all(|off| map.ray_cast(pos + dir.perp() * *off, dir, reach) >= reach)

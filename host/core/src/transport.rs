@@ -52,7 +52,10 @@ impl Udp {
     pub fn open(bind: SocketAddr, peer: SocketAddr) -> io::Result<Self> {
         let socket = UdpSocket::bind(bind)?;
         if peer.ip().is_unspecified() {
-            return Err(io::Error::new(io::ErrorKind::InvalidInput, "peer address is unspecified"));
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "peer address is unspecified",
+            ));
         }
         socket.set_broadcast(true)?;
         Ok(Self { socket, peer })
@@ -77,7 +80,14 @@ impl Transport for Udp {
             .set_read_timeout(Some(timeout.max(Duration::from_millis(1))))?;
         match self.socket.recv_from(buf) {
             Ok((n, _)) => Ok(n),
-            Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => Ok(0),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                ) =>
+            {
+                Ok(0)
+            }
             Err(e) => Err(e),
         }
     }

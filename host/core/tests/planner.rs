@@ -1,10 +1,10 @@
 //! The planner alone, driving an ideal unicycle at 10 Hz: each local-minimum case escapes
 //! and reaches the goal without touching anything.
 
+use base_station::geometry::Obstacle;
+use base_station::map::Map;
+use base_station::planner::{Mode, PlanPose, Planner, PlannerParams};
 use glam::DVec2;
-use host::geometry::Obstacle;
-use host::map::Map;
-use host::planner::{Mode, PlanPose, Planner, PlannerParams};
 
 const FOOTPRINT: f64 = 0.3;
 
@@ -21,7 +21,7 @@ fn drive(map: &Map, start: PlanPose, goal: DVec2, limit_s: f64) -> Outcome {
     let dt = 0.1;
     let mut t = 0.0;
     while t < limit_s {
-        let cmd = planner.step(t, dt, pose, map, &[], 1.0);
+        let cmd = planner.step(t, dt, pose, map, 0.0, 1.0);
         if cmd.mode == Mode::Arrived {
             return Outcome {
                 reached_at: Some(t),

@@ -105,7 +105,13 @@ impl StationConfig {
 impl BaseStation {
     /// `session`: fresh at every start (random); `nonce_base`: random.
     pub fn new(cfg: StationConfig, key: FleetKey, session: u32, nonce_base: u64) -> Self {
-        let mut link = Box::new(Link::new(Address::Base, key, session, nonce_base, Timing::default()));
+        let mut link = Box::new(Link::new(
+            Address::Base,
+            key,
+            session,
+            nonce_base,
+            Timing::default(),
+        ));
         let mut robots = BTreeMap::new();
         for id in std::iter::once(cfg.leader).chain(cfg.followers.iter().copied()) {
             link.add_peer(Address::Robot(id));
@@ -190,7 +196,11 @@ impl BaseStation {
                             status.received_ms = now_ms;
                             // Robot clock → ours; never later than now.
                             let at = header.time_ms.wrapping_sub(offset as u32);
-                            status.pose_at_ms = if (now_ms.wrapping_sub(at) as i32) < 0 { now_ms } else { at };
+                            status.pose_at_ms = if (now_ms.wrapping_sub(at) as i32) < 0 {
+                                now_ms
+                            } else {
+                                at
+                            };
                         }
                     }
                 }
@@ -203,7 +213,10 @@ impl BaseStation {
                 Ok(Event::Linked { peer }) => {
                     if let Address::Robot(robot) = peer {
                         tracing::info!(robot, "linked");
-                        self.events.push(StationEvent::Linked { robot, at_ms: now_ms });
+                        self.events.push(StationEvent::Linked {
+                            robot,
+                            at_ms: now_ms,
+                        });
                         self.last_slots_ms = None;
                     }
                 }
@@ -215,7 +228,8 @@ impl BaseStation {
 
     fn fresh(&self, id: u16, now_ms: u32) -> Option<&RobotStatus> {
         self.robots.get(&id).filter(|s| {
-            s.telemetry.is_some() && now_ms.wrapping_sub(s.received_ms) <= self.cfg.telemetry_timeout_ms
+            s.telemetry.is_some()
+                && now_ms.wrapping_sub(s.received_ms) <= self.cfg.telemetry_timeout_ms
         })
     }
 
@@ -285,7 +299,11 @@ impl BaseStation {
             }
             // Followers stop on their own when leader states stop; the leader stops when
             // commands stop. A Stop makes it explicit.
-            self.send(Address::Broadcast, now_ms, &Message::Stop(Stop { reason: 1 }));
+            self.send(
+                Address::Broadcast,
+                now_ms,
+                &Message::Stop(Stop { reason: 1 }),
+            );
             return;
         };
         self.leader_seen = true;
@@ -304,11 +322,11 @@ impl BaseStation {
         if self.formation.transformations().len() > before {
             let to = self.formation.target();
             tracing::info!(?to, "formation change");
-            self.events.push(StationEvent::Transformation { to, at_ms: now_ms });
+            self.events
+                .push(StationEvent::Transformation { to, at_ms: now_ms });
         }
 
-        let mut keep_clear = self.formation.slot_points(leader.pose);
-        keep_clear.extend(followers.iter().copied());
+        let half_width = self.formation.half_width();
         let worst = self
             .cfg
             .followers
@@ -318,14 +336,19 @@ impl BaseStation {
             .map(|t| t.tracking_error_mm as f64 / 1000.0)
             .fold(0.0, f64::max);
         let over = worst - self.cfg.wait_for_followers_above;
-        let speed_scale = if over > 0.0 { (1.0 - over / 0.5).max(0.2) } else { 1.0 };
+        let waiting = if over > 0.0 {
+            (1.0 - over / 0.5).max(0.2)
+        } else {
+            1.0
+        };
+        let speed_scale = waiting.min(self.formation.speed_factor());
         let was_arrived = self.planner.arrived();
         let cmd = self.planner.step(
             now_s,
             self.cfg.period_ms as f64 / 1000.0,
             leader.pose,
             &self.cfg.map,
-            &keep_clear,
+            half_width,
             speed_scale,
         );
         if self.planner.escapes() > self.escapes_seen {
@@ -344,12 +367,17 @@ impl BaseStation {
         });
         self.send(Address::Robot(self.cfg.leader), now_ms, &command);
 
+        // The pose is the leader's (measured, predicted to now); the velocity is the one it
+        // was just told to drive. The followers then start to speed up or turn when the
+        // leader does, not a motor lag later: their own lag matches the leader's.
         let p = leader.pose;
-        if let Ok(pose) = WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32) {
+        if let Ok(pose) =
+            WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32)
+        {
             let state = Message::LeaderState(LeaderState {
                 pose,
-                v_mm_s: units::to_milli_i16(leader.v as f32).unwrap_or(0),
-                omega_mrad_s: units::to_milli_i16(leader.omega as f32).unwrap_or(0),
+                v_mm_s: units::to_milli_i16(cmd.v as f32).unwrap_or(0),
+                omega_mrad_s: units::to_milli_i16(cmd.omega as f32).unwrap_or(0),
                 blend: (blend.clamp(0.0, 1.0) * 255.0).round() as u8,
             });
             self.send(Address::Broadcast, now_ms, &state);
@@ -359,10 +387,11 @@ impl BaseStation {
     fn send_slots(&mut self, now_ms: u32) {
         let n = self.cfg.followers.len();
         for (k, id) in self.cfg.followers.clone().into_iter().enumerate() {
-            let slot = |(l, phi): (f64, f64)| Slot::from_si(l as f32, phi as f32).unwrap_or_default();
+            let slot =
+                |(l, phi): (f64, f64)| Slot::from_si(l as f32, phi as f32).unwrap_or_default();
             let cmd = Message::FormationCommand(FormationCommand {
-                followers: n.min(255) as u8,
-                index: k.min(255) as u8,
+                followers: n.min(u16::MAX as usize) as u16,
+                index: k.min(u16::MAX as usize) as u16,
                 wide: slot(self.formation.wide_slots()[k]),
                 line: slot(self.formation.line_slots()[k]),
             });
@@ -372,7 +401,11 @@ impl BaseStation {
 
     /// Tells every robot to brake and hold (the operator stops the run).
     pub fn broadcast_stop(&mut self, now_ms: u32) {
-        self.send(Address::Broadcast, now_ms, &Message::Stop(Stop { reason: 0 }));
+        self.send(
+            Address::Broadcast,
+            now_ms,
+            &Message::Stop(Stop { reason: 0 }),
+        );
     }
 
     /// Counts a frame the byte decoder could not even deframe.

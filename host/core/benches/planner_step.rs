@@ -1,13 +1,12 @@
-//! One planner step (the leader plus two follower slots and two follower positions in the
-//! field) with 10, 1,000 and 10,000 obstacles. `cargo bench -p host --bench planner_step`.
+//! One planner step (the leader inflated to the triangle's width) with 10, 1,000 and 10,000 obstacles. `cargo bench -p host --bench planner_step`.
 
 use std::hint::black_box;
 
+use base_station::geometry::Obstacle;
+use base_station::map::Map;
+use base_station::planner::{PlanPose, Planner, PlannerParams};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec2;
-use host::geometry::Obstacle;
-use host::map::Map;
-use host::planner::{PlanPose, Planner, PlannerParams};
 
 /// `n` poles spread over a square whose side grows with √n (constant density, like a
 /// city district), seeded.
@@ -45,13 +44,8 @@ fn bench(c: &mut Criterion) {
                     position: p,
                     heading: 0.7,
                 };
-                let formation = [
-                    p + DVec2::new(-2.6, 1.5),
-                    p + DVec2::new(-2.6, -1.5),
-                    p + DVec2::new(-2.5, 1.4),
-                    p + DVec2::new(-2.7, -1.6),
-                ];
-                black_box(planner.step(t, 0.1, pose, &map, &formation, 1.0))
+                // The paper's triangle: 1.5 m lateral half-width.
+                black_box(planner.step(t, 0.1, pose, &map, 1.5, 1.0))
             })
         });
     }

@@ -97,13 +97,18 @@ impl Obstacle {
     /// Axis-aligned bounds, `[min, max]`.
     pub fn bounds(&self) -> [DVec2; 2] {
         match self {
-            Obstacle::Circle { center, radius } => {
-                [*center - DVec2::splat(*radius), *center + DVec2::splat(*radius)]
-            }
+            Obstacle::Circle { center, radius } => [
+                *center - DVec2::splat(*radius),
+                *center + DVec2::splat(*radius),
+            ],
             Obstacle::Segment { a, b } => [a.min(*b), a.max(*b)],
             Obstacle::Polygon { points } => {
-                let lo = points.iter().fold(DVec2::splat(f64::INFINITY), |m, p| m.min(*p));
-                let hi = points.iter().fold(DVec2::splat(f64::NEG_INFINITY), |m, p| m.max(*p));
+                let lo = points
+                    .iter()
+                    .fold(DVec2::splat(f64::INFINITY), |m, p| m.min(*p));
+                let hi = points
+                    .iter()
+                    .fold(DVec2::splat(f64::NEG_INFINITY), |m, p| m.max(*p));
                 [lo, hi]
             }
         }

@@ -136,13 +136,20 @@ impl ObstacleSpec {
         let need = Self::fields(self.kind);
         for (name, is_set) in self.present() {
             if need.contains(&name) && !is_set {
-                return Err((at.to_string(), format!("a {:?} needs `{name}`", self.kind).to_lowercase()));
+                return Err((
+                    at.to_string(),
+                    format!("a {:?} needs `{name}`", self.kind).to_lowercase(),
+                ));
             }
             if !need.contains(&name) && is_set {
                 return Err((
                     format!("{at}.{name}"),
-                    format!("`{name}` does not belong to a {:?} (it takes {})", self.kind, need.join(", "))
-                        .to_lowercase(),
+                    format!(
+                        "`{name}` does not belong to a {:?} (it takes {})",
+                        self.kind,
+                        need.join(", ")
+                    )
+                    .to_lowercase(),
                 ));
             }
         }
@@ -208,8 +215,8 @@ impl Default for RobotSpec {
             track_width: 0.4,
             wheel_radius: 0.08,
             ticks_per_rev: 2048,
-            max_wheel_speed: 1.0,
-            max_speed: 0.8,
+            max_wheel_speed: 1.1,
+            max_speed: 1.0,
             max_reverse_speed: 0.3,
             max_turn_rate: 1.5,
             max_accel: 1.0,
@@ -324,7 +331,6 @@ pub struct PlannerToml {
     pub max_turn_rate: f64,
     pub max_accel: f64,
     pub heading_gain: f64,
-    pub slot_weight: f64,
     pub follow_clearance: f64,
     /// Followers whose tracking error exceeds this slow the leader down, m.
     pub wait_for_followers_above: f64,
@@ -342,7 +348,6 @@ impl Default for PlannerToml {
             max_turn_rate: p.max_turn_rate,
             max_accel: p.max_accel,
             heading_gain: p.heading_gain,
-            slot_weight: p.slot_weight,
             follow_clearance: p.follow_clearance,
             wait_for_followers_above: 0.3,
         }
@@ -447,7 +452,7 @@ mod defaults {
         0.5
     }
     pub fn transition_s() -> f64 {
-        3.0
+        3.5
     }
     pub fn min_dwell_s() -> f64 {
         2.0
@@ -529,12 +534,13 @@ impl Scenario {
 
     /// Parses and validates scenario text; `file` names it in errors.
     pub fn parse(src: &str, file: &str) -> Result<Scenario, ScenarioError> {
-        let error = |field: String, position: Option<(usize, usize)>, message: String| ScenarioError {
-            file: file.to_string(),
-            position,
-            field,
-            message,
-        };
+        let error =
+            |field: String, position: Option<(usize, usize)>, message: String| ScenarioError {
+                file: file.to_string(),
+                position,
+                field,
+                message,
+            };
         let de = toml::Deserializer::parse(src).map_err(|e| {
             error(
                 String::new(),
@@ -565,14 +571,20 @@ impl Scenario {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err((field.to_string(), format!("must be a finite number > 0, got {v}")))
+                Err((
+                    field.to_string(),
+                    format!("must be a finite number > 0, got {v}"),
+                ))
             }
         };
         let finite = |field: &str, vs: &[f64]| {
             if vs.iter().all(|v| v.is_finite()) {
                 Ok(())
             } else {
-                Err((field.to_string(), "must be finite (no nan or inf)".to_string()))
+                Err((
+                    field.to_string(),
+                    "must be finite (no nan or inf)".to_string(),
+                ))
             }
         };
         let fraction = |field: &str, v: f64| {
@@ -610,7 +622,12 @@ impl Scenario {
             if let Some(r) = o.radius {
                 positive(&at("radius"), r)?;
             }
-            for (name, p) in [("from", o.from), ("to", o.to), ("min", o.min), ("max", o.max)] {
+            for (name, p) in [
+                ("from", o.from),
+                ("to", o.to),
+                ("min", o.min),
+                ("max", o.max),
+            ] {
                 if let Some(p) = p {
                     finite(&at(name), &p)?;
                 }
@@ -637,9 +654,16 @@ impl Scenario {
         if self.robots.is_empty() {
             return fail("robots", "at least a leader and one follower are needed");
         }
-        let leaders = self.robots.iter().filter(|r| r.role == Role::Leader).count();
+        let leaders = self
+            .robots
+            .iter()
+            .filter(|r| r.role == Role::Leader)
+            .count();
         if leaders != 1 {
-            return fail("robots", &format!("exactly one robot must have role = \"leader\", found {leaders}"));
+            return fail(
+                "robots",
+                &format!("exactly one robot must have role = \"leader\", found {leaders}"),
+            );
         }
         if self.followers().is_empty() {
             return fail("robots", "at least one follower is needed");
@@ -650,14 +674,20 @@ impl Scenario {
                 return fail(&format!("{field}.id"), "id 65535 is reserved");
             }
             if self.robots[..i].iter().any(|o| o.id == robot.id) {
-                return fail(&format!("{field}.id"), &format!("id {} is used twice", robot.id));
+                return fail(
+                    &format!("{field}.id"),
+                    &format!("id {} is used twice", robot.id),
+                );
             }
             let s = robot.start;
             finite(&format!("{field}.start"), &[s.x, s.y, s.heading_deg])?;
             finite(&format!("{field}.initial_speed"), &[robot.initial_speed])?;
             let clear = map.clearance(DVec2::new(s.x, s.y), 10.0);
             if clear < r.footprint_radius {
-                return fail(&format!("{field}.start"), "the robot starts inside or touching an obstacle");
+                return fail(
+                    &format!("{field}.start"),
+                    "the robot starts inside or touching an obstacle",
+                );
             }
         }
 
@@ -665,7 +695,10 @@ impl Scenario {
         positive("formation.distance", f.distance)?;
         finite("formation.angle_deg", &[f.angle_deg])?;
         if f.line_spacing < 2.0 * r.footprint_radius || !f.line_spacing.is_finite() {
-            return fail("formation.line_spacing", "must be at least two footprint radii (robots would touch)");
+            return fail(
+                "formation.line_spacing",
+                "must be at least two footprint radii (robots would touch)",
+            );
         }
         finite("formation.margin", &[f.margin])?;
         positive("formation.transition_s", f.transition_s)?;
@@ -675,7 +708,11 @@ impl Scenario {
             if f.slots.len() != self.followers().len() {
                 return fail(
                     "formation.slots",
-                    &format!("one slot per follower: {} followers, {} slots", self.followers().len(), f.slots.len()),
+                    &format!(
+                        "one slot per follower: {} followers, {} slots",
+                        self.followers().len(),
+                        f.slots.len()
+                    ),
                 );
             }
             for (i, s) in f.slots.iter().enumerate() {
@@ -696,7 +733,10 @@ impl Scenario {
             };
             finite(&field, &[p.x, p.y])?;
             if map.clearance(*p, 10.0) < r.footprint_radius {
-                return fail(&field, "the point is inside or too close to an obstacle for the robot");
+                return fail(
+                    &field,
+                    "the point is inside or too close to an obstacle for the robot",
+                );
             }
         }
         positive("route.arrival_tolerance", self.route.arrival_tolerance)?;
@@ -711,9 +751,11 @@ impl Scenario {
         positive("planner.max_turn_rate", p.max_turn_rate)?;
         positive("planner.max_accel", p.max_accel)?;
         positive("planner.heading_gain", p.heading_gain)?;
-        finite("planner.slot_weight", &[p.slot_weight])?;
         positive("planner.follow_clearance", p.follow_clearance)?;
-        positive("planner.wait_for_followers_above", p.wait_for_followers_above)?;
+        positive(
+            "planner.wait_for_followers_above",
+            p.wait_for_followers_above,
+        )?;
 
         let g = &self.follower;
         positive("follower.k1", g.k1)?;
@@ -734,11 +776,17 @@ impl Scenario {
             return fail("link.baud", "must be > 0");
         }
         let z = &self.localization;
-        finite("localization.sigma_m", &[z.sigma_m, z.heading_sigma_deg, z.latency_ms])?;
+        finite(
+            "localization.sigma_m",
+            &[z.sigma_m, z.heading_sigma_deg, z.latency_ms],
+        )?;
         positive("localization.rate_hz", z.rate_hz)?;
         positive("sim.duration_s", self.sim.duration_s)?;
         if self.sim.physics_step_ms == 0 || 100 % self.sim.physics_step_ms != 0 {
-            return fail("sim.physics_step_ms", "must divide the 100 ms control period");
+            return fail(
+                "sim.physics_step_ms",
+                "must divide the 100 ms control period",
+            );
         }
         Ok(())
     }
@@ -752,13 +800,23 @@ impl Scenario {
 
     /// Followers in id order: follower k takes slot k.
     pub fn followers(&self) -> Vec<&RobotEntry> {
-        let mut f: Vec<_> = self.robots.iter().filter(|r| r.role == Role::Follower).collect();
+        let mut f: Vec<_> = self
+            .robots
+            .iter()
+            .filter(|r| r.role == Role::Follower)
+            .collect();
         f.sort_by_key(|r| r.id);
         f
     }
 
     pub fn build_map(&self) -> Map {
-        Map::new(self.map.obstacles.iter().map(ObstacleSpec::to_obstacle).collect())
+        Map::new(
+            self.map
+                .obstacles
+                .iter()
+                .map(ObstacleSpec::to_obstacle)
+                .collect(),
+        )
     }
 
     pub fn planner_params(&self) -> PlannerParams {
@@ -777,7 +835,6 @@ impl Scenario {
             heading_gain: p.heading_gain,
             arrival_tolerance: self.route.arrival_tolerance,
             waypoint_tolerance: self.route.waypoint_tolerance,
-            slot_weight: p.slot_weight,
             follow_clearance: p.follow_clearance,
             ..PlannerParams::DEFAULT
         }

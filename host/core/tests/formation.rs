@@ -1,10 +1,10 @@
 //! Passage detection and the slot transition on synthetic maps.
 
+use base_station::formation::{FormationManager, FormationSpec, Target, WideShape};
+use base_station::geometry::Obstacle;
+use base_station::map::Map;
+use base_station::planner::PlanPose;
 use glam::DVec2;
-use host::formation::{FormationManager, FormationSpec, Target, WideShape};
-use host::geometry::Obstacle;
-use host::map::Map;
-use host::planner::PlanPose;
 
 fn spec() -> FormationSpec {
     FormationSpec {
@@ -79,7 +79,10 @@ fn drive(map: &Map, weave: f64) -> Run {
 #[test]
 fn three_metre_gap_becomes_a_line_and_back() {
     let run = drive(&gap(3.0), 0.0);
-    println!("3 m gap: {:?}, line complete at x = {:?}", run.events, run.line_done_at_x);
+    println!(
+        "3 m gap: {:?}, line complete at x = {:?}",
+        run.events, run.line_done_at_x
+    );
     let targets: Vec<_> = run.events.iter().map(|e| e.0).collect();
     assert_eq!(targets, vec![Target::Line, Target::Wide]);
     // In line before the leader enters the gap at x = 12.

@@ -1,0 +1,16 @@
+//! Software-in-the-loop: the robots' bodies, sensors and radio simulated around their real
+//! control code (natively, or the firmware in QEMU) and the real base station.
+//!
+//! - [`plant`]: differential-drive bodies, motors, encoders;
+//! - [`radio`]: the byte pipe between nodes: latency, jitter, loss, corruption, baud;
+//! - [`brain`]: the control code a robot runs;
+//! - [`world`]: everything on one simulated clock;
+//! - [`metrics`], [`plot`], [`run`]: what a run measured, its figure and its report.
+
+pub mod brain;
+pub mod metrics;
+pub mod plant;
+pub mod plot;
+pub mod radio;
+pub mod run;
+pub mod world;

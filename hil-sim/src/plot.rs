@@ -1,0 +1,278 @@
+//! The run's figure, like the paper's: trajectories with obstacles and formation
+//! snapshots; tracking error over time; linear and angular velocities over time. SVG.
+
+use std::path::Path;
+
+use base_station::geometry::Obstacle;
+use base_station::scenario::Role;
+use plotters::prelude::*;
+
+use crate::metrics::Report;
+use crate::world::World;
+
+const COLORS: [RGBColor; 6] = [
+    RGBColor(200, 30, 30),
+    RGBColor(30, 90, 200),
+    RGBColor(30, 150, 60),
+    RGBColor(200, 130, 0),
+    RGBColor(130, 50, 170),
+    RGBColor(0, 150, 150),
+];
+
+fn color(i: usize) -> RGBColor {
+    COLORS[i % COLORS.len()]
+}
+
+type PlotResult = Result<(), Box<dyn std::error::Error>>;
+
+pub fn write_svg(world: &World, report: &Report, path: &Path) -> PlotResult {
+    let root = SVGBackend::new(path, (1500, 760)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (left, right) = root.split_horizontally(760);
+    let (top, bottom) = right.split_vertically(380);
+    trajectories(world, report, &left)?;
+    errors(world, &top)?;
+    velocities(world, &bottom)?;
+    root.present()?;
+    Ok(())
+}
+
+fn trajectories<DB: DrawingBackend>(
+    world: &World,
+    report: &Report,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let rec = &world.recorder;
+    let mut lo = (f64::INFINITY, f64::INFINITY);
+    let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    let mut grow = |x: f64, y: f64| {
+        lo = (lo.0.min(x), lo.1.min(y));
+        hi = (hi.0.max(x), hi.1.max(y));
+    };
+    for s in &rec.samples {
+        for r in &s.robots {
+            grow(r.x, r.y);
+        }
+    }
+    for o in world.map.obstacles() {
+        let [a, b] = o.bounds();
+        grow(a.x, a.y);
+        grow(b.x, b.y);
+    }
+    if let Some(g) = world.station.planner().goal() {
+        grow(g.x, g.y);
+    }
+    let span = (hi.0 - lo.0).max(hi.1 - lo.1) + 2.0;
+    let (cx, cy) = ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0);
+    let title = format!(
+        "{} ({}, seed {}): goal {}, {} collisions, min clearance {:.2} m",
+        report.scenario,
+        report.firmware,
+        report.seed,
+        if report.goal_reached {
+            "reached"
+        } else {
+            "NOT reached"
+        },
+        report.collisions,
+        report.min_obstacle_clearance_m
+    );
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 16))
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(40)
+        .build_cartesian_2d(
+            cx - span / 2.0..cx + span / 2.0,
+            cy - span / 2.0..cy + span / 2.0,
+        )?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .draw()?;
+
+    let grey = RGBColor(120, 120, 120);
+    for o in world.map.obstacles() {
+        match o {
+            Obstacle::Circle { center, radius } => {
+                let pts: Vec<(f64, f64)> = (0..=36)
+                    .map(|i| {
+                        let a = i as f64 / 36.0 * std::f64::consts::TAU;
+                        (center.x + radius * a.cos(), center.y + radius * a.sin())
+                    })
+                    .collect();
+                chart.draw_series(std::iter::once(Polygon::new(pts, grey.filled())))?;
+            }
+            Obstacle::Segment { a, b } => {
+                chart.draw_series(LineSeries::new(
+                    [(a.x, a.y), (b.x, b.y)],
+                    grey.stroke_width(3),
+                ))?;
+            }
+            Obstacle::Polygon { points } => {
+                let pts: Vec<(f64, f64)> = points.iter().map(|p| (p.x, p.y)).collect();
+                chart.draw_series(std::iter::once(Polygon::new(pts, grey.filled())))?;
+            }
+        }
+    }
+    if let Some(g) = world.station.planner().goal() {
+        chart.draw_series(std::iter::once(Cross::new(
+            (g.x, g.y),
+            8,
+            BLACK.stroke_width(2),
+        )))?;
+    }
+    for (i, robot) in world.robots.iter().enumerate() {
+        let label = match robot.role {
+            Role::Leader => format!("leader {}", robot.id),
+            Role::Follower => format!("follower {}", robot.id),
+        };
+        chart
+            .draw_series(LineSeries::new(
+                rec.samples.iter().map(|s| (s.robots[i].x, s.robots[i].y)),
+                color(i).stroke_width(2),
+            ))?
+            .label(label)
+            .legend(move |(x, y)| {
+                PathElement::new([(x, y), (x + 16, y)], color(i).stroke_width(2))
+            });
+    }
+    // Formation snapshots every 10 s: the robots' footprints joined leader → followers.
+    let leader = world.robots.iter().position(|r| r.role == Role::Leader);
+    for s in rec
+        .samples
+        .iter()
+        .filter(|s| ((s.t * 10.0).round() as u64).is_multiple_of(100))
+    {
+        if let Some(l) = leader {
+            let lp = (s.robots[l].x, s.robots[l].y);
+            for (i, r) in s.robots.iter().enumerate() {
+                if i != l {
+                    chart.draw_series(LineSeries::new([lp, (r.x, r.y)], BLACK.mix(0.3)))?;
+                }
+            }
+        }
+        for (i, r) in s.robots.iter().enumerate() {
+            let fp = world.robots[i].body.params.footprint;
+            let pts: Vec<(f64, f64)> = (0..=24)
+                .map(|k| {
+                    let a = k as f64 / 24.0 * std::f64::consts::TAU;
+                    (r.x + fp * a.cos(), r.y + fp * a.sin())
+                })
+                .collect();
+            chart.draw_series(LineSeries::new(pts, color(i).mix(0.8)))?;
+        }
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
+
+fn errors<DB: DrawingBackend>(
+    world: &World,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let rec = &world.recorder;
+    let t_end = rec.samples.last().map_or(1.0, |s| s.t);
+    let e_max = rec
+        .samples
+        .iter()
+        .flat_map(|s| s.robots.iter().filter_map(|r| r.error))
+        .fold(0.1f64, f64::max)
+        .min(2.0);
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            "tracking error (control point to slot point)",
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..t_end, 0.0..e_max * 1.05)?;
+    chart
+        .configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("error (m)")
+        .draw()?;
+    chart.draw_series(LineSeries::new([(0.0, 0.1), (t_end, 0.1)], BLACK.mix(0.4)))?;
+    // Shade transformations (blend strictly between the shapes).
+    chart.draw_series(
+        rec.samples
+            .iter()
+            .filter(|s| s.blend > 0.0 && s.blend < 1.0)
+            .map(|s| {
+                Rectangle::new(
+                    [(s.t - 0.05, 0.0), (s.t + 0.05, e_max * 1.05)],
+                    RGBColor(255, 220, 150).mix(0.5).filled(),
+                )
+            }),
+    )?;
+    for (i, robot) in world.robots.iter().enumerate() {
+        if robot.role != Role::Follower {
+            continue;
+        }
+        chart
+            .draw_series(LineSeries::new(
+                rec.samples
+                    .iter()
+                    .filter_map(|s| s.robots[i].error.map(|e| (s.t, e.min(e_max * 1.05)))),
+                color(i).stroke_width(2),
+            ))?
+            .label(format!("follower {}", robot.id))
+            .legend(move |(x, y)| {
+                PathElement::new([(x, y), (x + 16, y)], color(i).stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
+
+fn velocities<DB: DrawingBackend>(
+    world: &World,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let rec = &world.recorder;
+    let t_end = rec.samples.last().map_or(1.0, |s| s.t);
+    let mut chart = ChartBuilder::on(area)
+        .caption("v (solid, m/s) and ω (dashed, rad/s)", ("sans-serif", 15))
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..t_end, -1.0..1.0)?;
+    chart.configure_mesh().x_desc("t (s)").draw()?;
+    for (i, _) in world.robots.iter().enumerate() {
+        chart.draw_series(LineSeries::new(
+            rec.samples
+                .iter()
+                .map(|s| (s.t, s.robots[i].v.clamp(-1.0, 1.0))),
+            color(i).stroke_width(2),
+        ))?;
+        chart.draw_series(DashedLineSeries::new(
+            rec.samples
+                .iter()
+                .map(|s| (s.t, s.robots[i].omega.clamp(-1.0, 1.0))),
+            4,
+            3,
+            color(i).into(),
+        ))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,61 @@
+//! One simulated run, start to report.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use base_station::scenario::Scenario;
+use protocol::{Reject, RejectCounts};
+
+use crate::brain::BrainError;
+use crate::metrics::{self, LinkReport, Report};
+use crate::world::{SimOptions, World};
+
+/// Runs a scenario; returns the report and the finished world (for the figure).
+pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, World), BrainError> {
+    let wall = Instant::now();
+    let firmware = options.firmware.name();
+    let seed = options.seed;
+    let mut world = World::new(scenario, options);
+    world.run()?;
+    let wall_time_s = wall.elapsed().as_secs_f64();
+
+    let mut rejects = world.station.rejects();
+    for r in &world.robots {
+        rejects.merge(&r.brain.rejects());
+    }
+    let link = LinkReport {
+        frames_sent: world.radio.stats.frames_sent,
+        frames_delivered: world.radio.stats.frames_delivered,
+        frames_rejected: rejects.total() as u64,
+        rejects_by_reason: by_reason(&rejects),
+    };
+    let s = &world.scenario;
+    let transformations = metrics::transformations(
+        &world.recorder,
+        &world.station,
+        s.wide_name(),
+        s.formation.transition_s,
+    );
+    let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
+    let report = metrics::build_report(
+        &world.recorder,
+        s,
+        &roles,
+        transformations,
+        seed,
+        firmware,
+        world.t_us as f64 / 1e6,
+        wall_time_s,
+        world.goal_time_s(),
+        link,
+    );
+    Ok((report, world))
+}
+
+fn by_reason(counts: &RejectCounts) -> BTreeMap<String, u64> {
+    Reject::ALL
+        .iter()
+        .filter(|r| counts.get(**r) > 0)
+        .map(|r| (r.name().to_string(), counts.get(*r) as u64))
+        .collect()
+}

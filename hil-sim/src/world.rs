@@ -1,0 +1,430 @@
+//! The simulated world: the real base station, the simulated radio, and each robot's body
+//! around its brain, stepped on one simulated clock. Deterministic under a seed; no sleeping
+//! unless `realtime`.
+
+use std::collections::{HashMap, VecDeque};
+use std::time::{Duration, Instant};
+
+use base_station::map::Map;
+use base_station::scenario::{Role, Scenario};
+use base_station::station::{BaseStation, StationConfig};
+use control_core::config::{self, RobotConfig};
+use control_core::controller::{MotorOutput, Sensors};
+use control_core::kinematics::DiffDrive;
+use control_core::node::Identity;
+use control_core::odometry::PoseFixSample;
+use control_core::pid::PidGains;
+use control_core::Pose;
+use glam::DVec2;
+use protocol::frame::{self, Address};
+use protocol::FleetKey;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use crate::brain::{Brain, BrainError, NativeBrain};
+use crate::metrics::Recorder;
+use crate::plant::{Body, BodyParams};
+use crate::radio::{NodeId, Radio, RadioParams};
+
+/// Which control code runs in the robots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Firmware {
+    /// The control core compiled for the host.
+    Native,
+}
+
+impl Firmware {
+    pub fn name(self) -> &'static str {
+        match self {
+            Firmware::Native => "native",
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct SimOptions {
+    pub seed: u64,
+    pub firmware: Firmware,
+    pub realtime: bool,
+    /// Keep running this long after the goal is reached (followers settle), s.
+    pub settle_s: f64,
+}
+
+impl SimOptions {
+    pub fn new(seed: u64) -> Self {
+        Self {
+            seed,
+            firmware: Firmware::Native,
+            realtime: false,
+            settle_s: 5.0,
+        }
+    }
+}
+
+/// The robot control configuration a scenario implies.
+pub fn robot_config(s: &Scenario) -> RobotConfig {
+    let r = &s.robot;
+    let d = RobotConfig::DEFAULT;
+    RobotConfig {
+        drive: DiffDrive {
+            track_width: r.track_width as f32,
+            wheel_radius: r.wheel_radius as f32,
+            max_wheel_speed: r.max_wheel_speed as f32,
+        },
+        ticks_per_rev: r.ticks_per_rev,
+        limits: config::Limits {
+            max_v: r.max_speed as f32,
+            max_reverse: r.max_reverse_speed as f32,
+            max_omega: r.max_turn_rate as f32,
+            max_accel: r.max_accel as f32,
+            brake_decel: r.brake_decel as f32,
+        },
+        gains: config::FollowerGains {
+            k1: s.follower.k1 as f32,
+            k2: s.follower.k2 as f32,
+            d: s.follower.d as f32,
+        },
+        pid: PidGains {
+            kff: 1.0 / r.motor_no_load_speed as f32,
+            ..d.pid
+        },
+        timeouts: config::Timeouts {
+            leader_state_ms: s.follower.leader_timeout_ms,
+            command_ms: s.follower.leader_timeout_ms,
+            ..d.timeouts
+        },
+        ..d
+    }
+}
+
+/// The simulation's fleet key: derived from the seed. Simulation only; real runs take
+/// the key from a file.
+pub fn sim_key(seed: u64) -> FleetKey {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_f1ee_7000_0001);
+    let mut key = [0u8; 32];
+    rng.fill(&mut key);
+    FleetKey::from_bytes(&key)
+}
+
+pub struct SimRobot {
+    pub id: u16,
+    pub role: Role,
+    pub body: Body,
+    pub brain: Box<dyn Brain>,
+    /// This robot's control ticks happen at `phase_us` past each 100 ms.
+    phase_us: u64,
+    duty: MotorOutput,
+    fixes: VecDeque<(u64, PoseFixSample)>,
+}
+
+pub struct World {
+    pub scenario: Scenario,
+    pub map: Map,
+    pub station: BaseStation,
+    pub radio: Radio,
+    pub robots: Vec<SimRobot>,
+    node_of: HashMap<u16, NodeId>,
+    loc_rng: ChaCha8Rng,
+    pub recorder: Recorder,
+    pub options: SimOptions,
+    pub t_us: u64,
+    goal_at_us: Option<u64>,
+}
+
+const PERIOD_US: u64 = 100_000;
+/// How far the simulated ultrasonic ring sees beyond the footprint, m.
+const PROXIMITY_RANGE: f64 = 2.0;
+/// Grid cell for robot neighbour queries, m (≥ range + two footprints).
+const CELL: f64 = 3.0;
+
+fn cell(x: f64, y: f64) -> (i64, i64) {
+    ((x / CELL).floor() as i64, (y / CELL).floor() as i64)
+}
+
+/// Distance along the unit ray to a circle, if it hits.
+fn ray_circle(o: DVec2, dir: DVec2, c: DVec2, r: f64) -> Option<f64> {
+    let oc = o - c;
+    let b = oc.dot(dir);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    (t >= 0.0).then_some(t)
+}
+
+impl World {
+    pub fn new(scenario: Scenario, options: SimOptions) -> Self {
+        let mut master = ChaCha8Rng::seed_from_u64(options.seed);
+        let key = sim_key(options.seed);
+        let station = BaseStation::new(
+            StationConfig::from_scenario(&scenario),
+            key.clone(),
+            master.random(),
+            master.random(),
+        );
+        let l = &scenario.link;
+        let radio = Radio::new(
+            RadioParams {
+                latency_s: l.latency_ms / 1000.0,
+                jitter_s: l.jitter_ms / 1000.0,
+                loss: l.loss,
+                byte_corruption: l.byte_corruption,
+                baud: l.baud,
+            },
+            ChaCha8Rng::seed_from_u64(master.random()),
+        );
+        let r = &scenario.robot;
+        let params = BodyParams {
+            footprint: r.footprint_radius,
+            track_width: r.track_width,
+            wheel_radius: r.wheel_radius,
+            ticks_per_rev: r.ticks_per_rev,
+            tau: r.motor_time_constant_s,
+            no_load_speed: r.motor_no_load_speed,
+            dead_band: r.motor_dead_band,
+        };
+        let cfg = robot_config(&scenario);
+        let mut node_of = HashMap::new();
+        let robots = scenario
+            .robots
+            .iter()
+            .enumerate()
+            .map(|(i, e)| {
+                node_of.insert(e.id, i + 1);
+                let mut body = Body::new(
+                    params,
+                    e.start.x,
+                    e.start.y,
+                    e.start.heading_deg.to_radians(),
+                );
+                body.wheel = [e.initial_speed; 2];
+                let identity = Identity {
+                    id: e.id,
+                    role: match e.role {
+                        Role::Leader => config::Role::Leader,
+                        Role::Follower => config::Role::Follower,
+                    },
+                    boot_count: 1,
+                };
+                let brain: Box<dyn Brain> = match options.firmware {
+                    Firmware::Native => Box::new(NativeBrain::new(identity, key.clone(), cfg)),
+                };
+                SimRobot {
+                    id: e.id,
+                    role: e.role,
+                    body,
+                    brain,
+                    // Robots are not synchronised: spread their ticks over the period.
+                    phase_us: (master.random_range(0..100) * 1000) as u64,
+                    duty: MotorOutput::default(),
+                    fixes: VecDeque::new(),
+                }
+            })
+            .collect();
+        let map = scenario.build_map();
+        let recorder = Recorder::new(&scenario);
+        Self {
+            loc_rng: ChaCha8Rng::seed_from_u64(master.random()),
+            map,
+            station,
+            radio,
+            robots,
+            node_of,
+            recorder,
+            scenario,
+            options,
+            t_us: 0,
+            goal_at_us: None,
+        }
+    }
+
+    /// The addressed receivers of a frame (unparseable: everyone, who will reject it).
+    fn route(node_of: &HashMap<u16, NodeId>, robots: usize, frame: &[u8]) -> Vec<NodeId> {
+        let mut copy = frame.to_vec();
+        let body = copy
+            .strip_suffix(&[0])
+            .map(<[u8]>::len)
+            .unwrap_or(copy.len());
+        let header = cobs::decode_in_place(&mut copy[..body])
+            .ok()
+            .and_then(|n| frame::peek_header(&copy[..n]).ok());
+        match header.map(|h| h.to) {
+            Some(Address::Base) => vec![0],
+            Some(Address::Robot(id)) => node_of.get(&id).copied().into_iter().collect(),
+            _ => (0..=robots).collect(),
+        }
+    }
+
+    fn transmit(&mut self, from: NodeId, bytes: &[u8]) {
+        if bytes.is_empty() {
+            return;
+        }
+        let node_of = &self.node_of;
+        let n = self.robots.len();
+        self.radio
+            .transmit(from, bytes, self.t_us, |f| Self::route(node_of, n, f));
+    }
+
+    /// Runs to the goal (plus settling) or the scenario's duration.
+    pub fn run(&mut self) -> Result<(), BrainError> {
+        let end_us = (self.scenario.sim.duration_s * 1e6) as u64;
+        let step_us = self.scenario.sim.physics_step_ms as u64 * 1000;
+        let wall = Instant::now();
+        while self.t_us < end_us {
+            self.step(step_us)?;
+            if let Some(goal) = self.goal_at_us {
+                if self.t_us >= goal + (self.options.settle_s * 1e6) as u64 {
+                    break;
+                }
+            }
+            if self.options.realtime {
+                let ahead = Duration::from_micros(self.t_us).saturating_sub(wall.elapsed());
+                std::thread::sleep(ahead);
+            }
+        }
+        Ok(())
+    }
+
+    /// One physics step of `step_us`.
+    pub fn step(&mut self, step_us: u64) -> Result<(), BrainError> {
+        let t = self.t_us;
+        let now_ms = (t / 1000) as u32;
+
+        // Radio arrivals.
+        for (to, bytes) in self.radio.arrivals(t) {
+            if to == 0 {
+                self.station.receive(&bytes, now_ms);
+            } else {
+                let mut tx = Vec::new();
+                self.robots[to - 1]
+                    .brain
+                    .radio_rx(&bytes, now_ms, &mut tx)?;
+                self.transmit(to, &tx);
+            }
+        }
+
+        // Localization: a fix of every robot each period, delivered after its latency.
+        let loc = &self.scenario.localization;
+        let fix_every = (1e6 / loc.rate_hz) as u64;
+        if t % fix_every < step_us {
+            let pos = Normal::new(0.0, loc.sigma_m.max(1e-12)).expect("σ ≥ 0");
+            let head =
+                Normal::new(0.0, loc.heading_sigma_deg.to_radians().max(1e-12)).expect("σ ≥ 0");
+            let arrive = t + (loc.latency_ms * 1000.0) as u64;
+            for r in &mut self.robots {
+                let sample = PoseFixSample {
+                    pose: Pose::new(
+                        (r.body.x + pos.sample(&mut self.loc_rng)) as f32,
+                        (r.body.y + pos.sample(&mut self.loc_rng)) as f32,
+                        (r.body.heading + head.sample(&mut self.loc_rng)) as f32,
+                    ),
+                    sigma: loc.sigma_m as f32,
+                    time_ms: now_ms,
+                };
+                r.fixes.push_back((arrive, sample));
+            }
+        }
+
+        // Base station at 10 Hz.
+        if t.is_multiple_of(PERIOD_US) {
+            self.station.step(now_ms);
+            let out = self.station.take_outbox();
+            self.transmit(0, &out);
+        }
+
+        // Robots at 10 Hz, each on its own phase.
+        let due: Vec<usize> = (0..self.robots.len())
+            .filter(|i| (t + PERIOD_US - self.robots[*i].phase_us) % PERIOD_US < step_us)
+            .collect();
+        let grid = (!due.is_empty()).then(|| self.robot_grid());
+        for i in due {
+            let proximity = self.proximity(i, grid.as_ref().expect("built when due"));
+            let r = &mut self.robots[i];
+            let mut newest = None;
+            while r.fixes.front().is_some_and(|(at, _)| *at <= t) {
+                newest = r.fixes.pop_front().map(|f| f.1);
+            }
+            let sensors = Sensors {
+                ticks: r.body.ticks(),
+                pose_fix: newest,
+                proximity,
+            };
+            let mut tx = Vec::new();
+            r.duty = r.brain.tick(now_ms, &sensors, &mut tx)?;
+            self.transmit(i + 1, &tx);
+        }
+
+        // Bodies.
+        let dt = step_us as f64 / 1e6;
+        for r in &mut self.robots {
+            r.body.step(&r.duty, dt);
+        }
+        self.t_us += step_us;
+
+        if self.goal_at_us.is_none() && self.station.planner().arrived() {
+            self.goal_at_us = Some(self.t_us);
+        }
+        self.recorder
+            .observe(self.t_us, &self.robots, &self.map, &self.station);
+        Ok(())
+    }
+
+    /// Robots by grid cell, for neighbour queries.
+    fn robot_grid(&self) -> HashMap<(i64, i64), Vec<usize>> {
+        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        for (i, r) in self.robots.iter().enumerate() {
+            grid.entry(cell(r.body.x, r.body.y)).or_default().push(i);
+        }
+        grid
+    }
+
+    /// The ultrasonic ring of robot `i`: free distance ahead and behind (cones of ±40°,
+    /// range `PROXIMITY_RANGE` beyond the footprint), to obstacles and other robots.
+    fn proximity(&self, i: usize, grid: &HashMap<(i64, i64), Vec<usize>>) -> [Option<f32>; 2] {
+        let body = &self.robots[i].body;
+        let fp = body.params.footprint;
+        let p = DVec2::new(body.x, body.y);
+        let reach = PROXIMITY_RANGE + fp;
+        let (cx, cy) = cell(body.x, body.y);
+        let neighbours: Vec<DVec2> = (-1..=1)
+            .flat_map(|dx| (-1..=1).map(move |dy| (cx + dx, cy + dy)))
+            .filter_map(|c| grid.get(&c))
+            .flatten()
+            .filter(|j| **j != i)
+            .map(|j| DVec2::new(self.robots[*j].body.x, self.robots[*j].body.y))
+            .collect();
+        let sense = |base: f64| {
+            let free = [-40f64, -20.0, 0.0, 20.0, 40.0]
+                .iter()
+                .map(|deg| {
+                    let a = base + deg.to_radians();
+                    let dir = DVec2::new(a.cos(), a.sin());
+                    let wall = self.map.ray_cast(p, dir, reach);
+                    neighbours
+                        .iter()
+                        .filter_map(|q| ray_circle(p, dir, *q, fp))
+                        .fold(wall, f64::min)
+                })
+                .fold(reach, f64::min)
+                - fp;
+            (free < PROXIMITY_RANGE).then_some(free.max(0.0) as f32)
+        };
+        [
+            sense(body.heading),
+            sense(body.heading + std::f64::consts::PI),
+        ]
+    }
+
+    pub fn goal_time_s(&self) -> Option<f64> {
+        self.goal_at_us.map(|t| t as f64 / 1e6)
+    }
+
+    pub fn leader_position(&self) -> Option<DVec2> {
+        self.robots
+            .iter()
+            .find(|r| r.role == Role::Leader)
+            .map(|r| DVec2::new(r.body.x, r.body.y))
+    }
+}
