@@ -2,8 +2,9 @@
 //! clearances at every physics step.
 //!
 //! Definitions (also in `docs/sim.md`): tracking error = distance from a follower's
-//! control point to its reference slot point (true leader pose and the station's current
-//! slot, which moves continuously during a transformation). Clearance = footprint to
+//! control point to its reference slot point: from the true leader pose and path and the
+//! station's current blend, by the followers' own `Slots::reference` (it moves
+//! continuously during a transformation). Clearance = footprint to
 //! obstacle surface. Robot separation = footprint to footprint.
 
 use std::collections::HashSet;
@@ -12,6 +13,8 @@ use base_station::formation::Target;
 use base_station::map::Map;
 use base_station::scenario::{Role, Scenario};
 use base_station::station::BaseStation;
+use control_core::follower::{Slots, Trail};
+use control_core::Pose;
 use glam::DVec2;
 use serde::Serialize;
 
@@ -48,6 +51,8 @@ pub struct Recorder {
     pub min_separation: f64,
     pub contacts: u32,
     touching: HashSet<(usize, usize)>,
+    /// The true leader's path: the line's reference, as the followers compute it.
+    trail: Trail,
 }
 
 const OBSTACLE: usize = usize::MAX;
@@ -63,6 +68,7 @@ impl Recorder {
             min_separation: f64::INFINITY,
             contacts: 0,
             touching: HashSet::new(),
+            trail: Trail::new(),
         }
     }
 
@@ -115,7 +121,6 @@ impl Recorder {
             .find(|r| r.role == Role::Leader)
             .map(|r| &r.body);
         let formation = station.formation();
-        let mut follower_k = 0;
         let mut followers: Vec<(u16, usize)> = robots
             .iter()
             .enumerate()
@@ -136,12 +141,16 @@ impl Recorder {
                 let error = match (r.role, leader) {
                     (Role::Follower, Some(l)) => {
                         let k = slot_of[&i];
-                        follower_k += 1;
-                        let (lf, phi) = formation.slot(k);
-                        let a = l.heading + phi;
-                        let reference = DVec2::new(l.x + lf * a.cos(), l.y + lf * a.sin());
+                        let f32s = |(a, b): (f64, f64)| (a as f32, b as f32);
+                        let slots = Slots {
+                            wide: f32s(formation.wide_slots()[k]),
+                            line: f32s(formation.line_slots()[k]),
+                        };
+                        let pose = Pose::new(l.x as f32, l.y as f32, l.heading as f32);
+                        let (rx, ry) =
+                            slots.reference(&pose, formation.blend() as f32, &self.trail);
                         let (cx, cy) = r.body.ahead(self.d);
-                        Some((DVec2::new(cx, cy) - reference).length())
+                        Some((DVec2::new(cx, cy) - DVec2::new(rx as f64, ry as f64)).length())
                     }
                     _ => None,
                 };

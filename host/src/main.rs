@@ -24,6 +24,8 @@ enum Command {
     Check(cli::check::CheckArgs),
     /// Decode a captured byte stream: one JSON line per frame.
     Decode(cli::decode::DecodeArgs),
+    /// Simulate the fleet (software in the loop) and report against the paper.
+    Sim(cli::sim::SimArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -43,6 +45,7 @@ fn main() -> std::process::ExitCode {
         Command::Run(args) => cli::run::run(args),
         Command::Check(args) => cli::check::run(args),
         Command::Decode(args) => cli::decode::run(args),
+        Command::Sim(args) => cli::sim::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -26,7 +26,7 @@
 use protocol::messages::{faults, RobotMode};
 
 use crate::config::{RobotConfig, Role};
-use crate::follower::{self, LeaderSnapshot, SlotRef, Slots};
+use crate::follower::{self, LeaderSnapshot, SlotRef, Slots, Trail};
 use crate::kinematics::WheelSpeeds;
 use crate::odometry::{FixOutcome, Odometry, PoseFixSample};
 use crate::pid::Pid;
@@ -70,6 +70,7 @@ pub struct Controller {
     pids: [Pid; 2],
     slots: Option<Slots>,
     leader: Option<LeaderInput>,
+    trail: Trail,
     command: Option<(Twist, u32)>,
     stop_requested: bool,
     emergency: bool,
@@ -92,6 +93,7 @@ impl Controller {
             pids: [Pid::new(cfg.pid), Pid::new(cfg.pid)],
             slots: None,
             leader: None,
+            trail: Trail::new(),
             command: None,
             stop_requested: false,
             emergency: false,
@@ -177,6 +179,7 @@ impl Controller {
             }
             _ => 0.0,
         };
+        self.trail.record(snapshot.pose.x, snapshot.pose.y);
         self.leader = Some(LeaderInput {
             snapshot,
             valid_at_ms,
@@ -348,24 +351,24 @@ impl Controller {
         );
         let now_leader = leader.snapshot.predict(age);
         let blend = math::clamp(leader.blend + leader.blend_rate * age, 0.0, 1.0);
-        let (l, phi) = slots.at(blend);
-        // Slot rates for feed-forward, by a small step along the blend.
-        let (l_rate, phi_rate) = if leader.blend_rate != 0.0 && blend > 0.0 && blend < 1.0 {
-            let eps = 0.01 * if leader.blend_rate > 0.0 { 1.0 } else { -1.0 };
-            let (l2, phi2) = slots.at(blend + eps);
-            let k = leader.blend_rate / eps;
-            ((l2 - l) * k, math::wrap_angle(phi2 - phi) * k)
-        } else {
-            (0.0, 0.0)
-        };
+        let reference = slots.reference(&now_leader.pose, blend, &self.trail);
+        let (l, phi) = follower::as_slot(&now_leader.pose, reference);
+        // The slot's own motion (a shape change, the line bending along the trail), fed
+        // forward: the same reference a moment later, from the predicted leader.
+        const H: f32 = 0.05;
+        let later = leader.snapshot.predict(age + H);
+        let later_blend = math::clamp(blend + leader.blend_rate * H, 0.0, 1.0);
+        let (l2, phi2) = follower::as_slot(
+            &later.pose,
+            slots.reference(&later.pose, later_blend, &self.trail),
+        );
         let slot = SlotRef {
             l,
             phi,
-            l_rate,
-            phi_rate,
+            l_rate: (l2 - l) / H,
+            phi_rate: math::wrap_angle(phi2 - phi) / H,
         };
         let raw = follower::lphi_law(&now_leader, pose, &slot, &self.cfg.gains)?;
-        let reference = follower::slot_point(&now_leader.pose, l, phi);
         let control_point = pose.ahead(self.cfg.gains.d);
         let error = math::hypot(control_point.0 - reference.0, control_point.1 - reference.1);
         self.reference = Some(reference);

@@ -85,6 +85,16 @@ pub fn relative(leader: &Pose, follower: &Pose, d: f32) -> Relative {
     }
 }
 
+/// A world point as (L, φ) from the leader.
+pub fn as_slot(leader: &Pose, point: (f32, f32)) -> (f32, f32) {
+    let dx = point.0 - leader.x;
+    let dy = point.1 - leader.y;
+    (
+        math::hypot(dx, dy),
+        math::wrap_angle(math::atan2(dy, dx) - leader.heading),
+    )
+}
+
 /// The point a slot puts the follower's control point at.
 pub fn slot_point(leader: &Pose, l: f32, phi: f32) -> (f32, f32) {
     let (s, c) = math::sin_cos(leader.heading + phi);
@@ -149,6 +159,80 @@ pub fn lphi_law_paper(
     Some(Twist { v, omega })
 }
 
+/// Trail points kept: 9.6 m of the leader's path at 0.1 m spacing (768 bytes).
+pub const TRAIL_POINTS: usize = 96;
+/// Least distance between two trail points, m.
+pub const TRAIL_SPACING: f32 = 0.1;
+
+/// The path the leader drove, newest last. In the line, follower k's reference is the
+/// point k·D back **along this path**, not k·D behind the leader's current heading: on a
+/// straight path both are the paper's `x_i − k·D·cos α_i`, but in a turn the rigid line
+/// swings its tail across the inside of the corner (1.5 m at 3 m behind in a 3 m radius
+/// turn), into whatever the leader went around.
+#[derive(Debug, Clone, Default)]
+pub struct Trail {
+    points: heapless::Deque<(f32, f32), TRAIL_POINTS>,
+}
+
+impl Trail {
+    pub const fn new() -> Self {
+        Self {
+            points: heapless::Deque::new(),
+        }
+    }
+
+    /// Records where the leader was (ignores NaN and points closer than the spacing).
+    pub fn record(&mut self, x: f32, y: f32) {
+        if !(x.is_finite() && y.is_finite()) {
+            return;
+        }
+        if let Some(&(lx, ly)) = self.points.back() {
+            if math::hypot(x - lx, y - ly) < TRAIL_SPACING {
+                return;
+            }
+        }
+        if self.points.is_full() {
+            self.points.pop_front();
+        }
+        let _ = self.points.push_back((x, y));
+    }
+
+    pub fn clear(&mut self) {
+        self.points.clear();
+    }
+
+    /// The point `s` metres back along the path from the leader at `leader`. Beyond the
+    /// recorded path it goes on straight, along the chord from the leader to the oldest
+    /// point (stable against a wiggle at the start), or straight behind the leader when
+    /// less than half a metre is recorded.
+    pub fn behind(&self, leader: &Pose, s: f32) -> (f32, f32) {
+        let mut remaining = s;
+        let mut cur = (leader.x, leader.y);
+        for &(px, py) in self.points.iter().rev() {
+            let (dx, dy) = (px - cur.0, py - cur.1);
+            let seg = math::hypot(dx, dy);
+            if seg < 1e-6 {
+                continue;
+            }
+            if seg >= remaining {
+                let k = remaining / seg;
+                return (cur.0 + dx * k, cur.1 + dy * k);
+            }
+            remaining -= seg;
+            cur = (px, py);
+        }
+        let (cx, cy) = (cur.0 - leader.x, cur.1 - leader.y);
+        let chord = math::hypot(cx, cy);
+        let back = if s - remaining > 0.5 && chord > 0.25 {
+            (cx / chord, cy / chord)
+        } else {
+            let (sh, ch) = math::sin_cos(leader.heading);
+            (-ch, -sh)
+        };
+        (cur.0 + back.0 * remaining, cur.1 + back.1 * remaining)
+    }
+}
+
 /// A follower's two slots, and the shape between them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -160,8 +244,21 @@ pub struct Slots {
 }
 
 impl Slots {
-    /// The slot at `blend` (0 = wide, 1 = line): the slot point moves on a straight line
-    /// in the leader's frame, so the reference never jumps and never crosses the leader.
+    /// The reference point at `blend` (0 = wide, 1 = line), in the world: between the wide
+    /// slot point (rigid, relative to the leader's pose) and the line slot's distance back
+    /// along the leader's trail.
+    pub fn reference(&self, leader: &Pose, blend: f32, trail: &Trail) -> (f32, f32) {
+        let b = math::clamp(blend, 0.0, 1.0);
+        let (wx, wy) = slot_point(leader, self.wide.0, self.wide.1);
+        if b <= 0.0 {
+            return (wx, wy);
+        }
+        let (lx, ly) = trail.behind(leader, self.line.0);
+        (wx + (lx - wx) * b, wy + (ly - wy) * b)
+    }
+
+    /// The slot at `blend` with a rigid line (leader frame only): the slot point moves on
+    /// a straight line in the leader's frame, so the reference never jumps.
     pub fn at(&self, blend: f32) -> (f32, f32) {
         let b = math::clamp(blend, 0.0, 1.0);
         // The end points exactly, without an atan2 round trip.

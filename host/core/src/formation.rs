@@ -109,6 +109,8 @@ pub struct FormationManager {
 
 /// The leader's speed factor while the slots move.
 pub const TRANSFORM_SPEED: f64 = 0.4;
+/// Slow time after the slots reached the new shape, s.
+const SETTLE_S: f64 = 1.5;
 /// How far past the narrow stretch every follower must be before the wide shape returns, m.
 const EXIT_MARGIN: f64 = 1.0;
 
@@ -175,6 +177,13 @@ impl FormationManager {
             .fold(0.0, f64::max)
     }
 
+    /// The distance of the farthest slot from the leader at the current blend, m.
+    pub fn reach(&self) -> f64 {
+        (0..self.spec.followers)
+            .map(|k| self.slot(k).0)
+            .fold(0.0, f64::max)
+    }
+
     /// The slot points in the world for a leader pose.
     pub fn slot_points(&self, leader: PlanPose) -> Vec<DVec2> {
         (0..self.spec.followers)
@@ -220,9 +229,14 @@ impl FormationManager {
             .find(|p| self.is_narrow(map, *p, dir, need))
     }
 
-    /// The leader's speed factor: slower while the slots move.
-    pub fn speed_factor(&self) -> f64 {
-        if self.transition_start.is_some() {
+    /// The leader's speed factor: slower while the slots move and for `SETTLE_S` after,
+    /// while the followers close the last gap to their new slots.
+    pub fn speed_factor(&self, now_s: f64) -> f64 {
+        let settling = self
+            .events
+            .last()
+            .is_some_and(|e| now_s < e.start_s + self.spec.transition_s + SETTLE_S);
+        if settling {
             TRANSFORM_SPEED
         } else {
             1.0

@@ -8,7 +8,8 @@ use std::collections::BTreeMap;
 use glam::DVec2;
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{
-    FormationCommand, LeaderState, Message, Slot, Stop, Telemetry, VelocityCommand, WirePose,
+    FormationCommand, LeaderState, Message, RobotMode, Slot, Stop, Telemetry, VelocityCommand,
+    WirePose,
 };
 use protocol::{units, Address, FleetKey, FrameDecoder, Reject, RejectCounts, MAX_WIRE};
 
@@ -35,6 +36,8 @@ pub struct StationConfig {
     pub wait_for_followers_above: f64,
     /// Telemetry older than this is stale, ms.
     pub telemetry_timeout_ms: u32,
+    /// The speed a follower can use to hold its slot (a margin under its limit), m/s.
+    pub follower_speed: f64,
     /// Control period, ms.
     pub period_ms: u32,
 }
@@ -52,12 +55,30 @@ pub struct RobotStatus {
 /// Something the operator (and the run's report) should know.
 #[derive(Debug, Clone, PartialEq)]
 pub enum StationEvent {
-    Linked { robot: u16, at_ms: u32 },
-    Transformation { to: Target, at_ms: u32 },
-    LeaderLost { at_ms: u32 },
-    LeaderBack { at_ms: u32 },
-    Escape { at_ms: u32 },
-    Arrived { at_ms: u32 },
+    Linked {
+        robot: u16,
+        at_ms: u32,
+    },
+    Transformation {
+        to: Target,
+        at_ms: u32,
+    },
+    LeaderLost {
+        at_ms: u32,
+    },
+    LeaderBack {
+        at_ms: u32,
+    },
+    Escape {
+        at_ms: u32,
+    },
+    Arrived {
+        at_ms: u32,
+    },
+    /// Every robot linked and reporting, followers holding slots: the leader may go.
+    FleetReady {
+        at_ms: u32,
+    },
 }
 
 /// The leader as the station estimates it now.
@@ -80,6 +101,7 @@ pub struct BaseStation {
     events: Vec<StationEvent>,
     leader_seen: bool,
     leader_lost: bool,
+    ready: bool,
     escapes_seen: u32,
     last_command: (f64, f64),
 }
@@ -97,6 +119,7 @@ impl StationConfig {
             initial_speed: s.leader().initial_speed,
             wait_for_followers_above: s.planner.wait_for_followers_above,
             telemetry_timeout_ms: s.follower.leader_timeout_ms,
+            follower_speed: 0.8 * s.robot.max_speed,
             period_ms: 100,
         }
     }
@@ -131,6 +154,7 @@ impl BaseStation {
             events: Vec::new(),
             leader_seen: false,
             leader_lost: false,
+            ready: false,
             escapes_seen: 0,
             last_command: (0.0, 0.0),
         }
@@ -327,6 +351,35 @@ impl BaseStation {
         }
 
         let half_width = self.formation.half_width();
+        self.planner
+            .set_formation(self.formation.reach(), self.cfg.follower_speed);
+        if !self.ready {
+            // Leave only with the whole fleet: every follower linked, reporting and
+            // following (not idle, not failsafe). Until then the leader holds.
+            let following = self.cfg.followers.iter().all(|id| {
+                self.fresh(*id, now_ms)
+                    .and_then(|s| s.telemetry)
+                    .is_some_and(|t| {
+                        matches!(
+                            t.mode,
+                            RobotMode::Joining | RobotMode::InFormation | RobotMode::Transforming
+                        )
+                    })
+            });
+            if !following {
+                self.last_command = (0.0, 0.0);
+                let hold = Message::VelocityCommand(VelocityCommand {
+                    v_mm_s: 0,
+                    omega_mrad_s: 0,
+                });
+                self.send(Address::Robot(self.cfg.leader), now_ms, &hold);
+                self.broadcast_leader_state(&leader, (0.0, 0.0), 0.0, now_ms);
+                return;
+            }
+            self.ready = true;
+            tracing::info!("fleet ready");
+            self.events.push(StationEvent::FleetReady { at_ms: now_ms });
+        }
         let worst = self
             .cfg
             .followers
@@ -341,7 +394,7 @@ impl BaseStation {
         } else {
             1.0
         };
-        let speed_scale = waiting.min(self.formation.speed_factor());
+        let speed_scale = waiting.min(self.formation.speed_factor(now_s));
         let was_arrived = self.planner.arrived();
         let cmd = self.planner.step(
             now_s,
@@ -367,17 +420,27 @@ impl BaseStation {
         });
         self.send(Address::Robot(self.cfg.leader), now_ms, &command);
 
-        // The pose is the leader's (measured, predicted to now); the velocity is the one it
-        // was just told to drive. The followers then start to speed up or turn when the
-        // leader does, not a motor lag later: their own lag matches the leader's.
+        self.broadcast_leader_state(&leader, (cmd.v, cmd.omega), blend, now_ms);
+    }
+
+    /// The pose is the leader's (measured, predicted to now); the velocity is the one it
+    /// was just told to drive. The followers then start to speed up or turn when the
+    /// leader does, not a motor lag later: their own lag matches the leader's.
+    fn broadcast_leader_state(
+        &mut self,
+        leader: &LeaderEstimate,
+        twist: (f64, f64),
+        blend: f64,
+        now_ms: u32,
+    ) {
         let p = leader.pose;
         if let Ok(pose) =
             WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32)
         {
             let state = Message::LeaderState(LeaderState {
                 pose,
-                v_mm_s: units::to_milli_i16(cmd.v as f32).unwrap_or(0),
-                omega_mrad_s: units::to_milli_i16(cmd.omega as f32).unwrap_or(0),
+                v_mm_s: units::to_milli_i16(twist.0 as f32).unwrap_or(0),
+                omega_mrad_s: units::to_milli_i16(twist.1 as f32).unwrap_or(0),
                 blend: (blend.clamp(0.0, 1.0) * 255.0).round() as u8,
             });
             self.send(Address::Broadcast, now_ms, &state);

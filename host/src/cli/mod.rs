@@ -3,6 +3,7 @@
 pub mod check;
 pub mod decode;
 pub mod run;
+pub mod sim;
 
 use std::path::PathBuf;
 

@@ -107,6 +107,8 @@ pub struct Planner {
     v: f64,
     escapes: u32,
     inflation: f64,
+    /// (farthest slot distance, followers' usable speed), when a formation follows.
+    formation: Option<(f64, f64)>,
 }
 
 /// The robot's pose as the planner sees it.
@@ -138,6 +140,24 @@ impl Planner {
             v: initial_speed,
             escapes: 0,
             inflation: 0.0,
+            formation: None,
+        }
+    }
+
+    /// Tells the planner how far the farthest slot is from the leader and how fast the
+    /// followers can drive: the turn rate is then capped so that the farthest slot point,
+    /// swung around the leader (ω·L across the leader's speed v), never needs more than
+    /// that speed: ω ≤ √(v_f² − v²) / L.
+    pub fn set_formation(&mut self, reach: f64, follower_speed: f64) {
+        self.formation = (reach > 0.0).then_some((reach, follower_speed));
+    }
+
+    /// The turn-rate limit now.
+    pub fn turn_limit(&self) -> f64 {
+        let max = self.params.max_turn_rate;
+        match self.formation {
+            Some((reach, vf)) => max.min((vf * vf - self.v * self.v).max(0.0).sqrt() / reach),
+            None => max,
         }
     }
 
@@ -263,7 +283,8 @@ impl Planner {
         } else {
             wrap(direction.y.atan2(direction.x) - pose.heading)
         };
-        let omega = (p.heading_gain * err).clamp(-p.max_turn_rate, p.max_turn_rate);
+        let turn = self.turn_limit();
+        let omega = (p.heading_gain * err).clamp(-turn, turn);
         let align = err.cos().max(0.0);
         let target = p.max_speed * strength * align * align * speed_scale.clamp(0.0, 1.0);
         self.v += (target - self.v).clamp(-p.max_accel * dt, p.max_accel * dt);

@@ -1,0 +1,169 @@
+//! `basestation sim [SCENARIO]`: the whole system in software. The real base station code
+//! drives simulated robots (their real control code, natively or as firmware in QEMU) over
+//! a simulated radio. Prints the run's metrics beside the paper's, writes the JSON report
+//! and an SVG figure.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+use hil_sim::metrics::Report;
+use hil_sim::run::simulate;
+use hil_sim::world::{Firmware, SimOptions};
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum FirmwareArg {
+    /// The control core compiled for this machine.
+    Native,
+    /// The real firmware ELF, one QEMU per robot.
+    Qemu,
+}
+
+#[derive(Args, Debug)]
+pub struct SimArgs {
+    /// A scenario file or a shipped scenario's name.
+    #[arg(default_value = "paper-obstacles")]
+    pub scenario: String,
+    /// Where to write the JSON report [default: out/SCENARIO.json].
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Where to write the SVG figure [default: out/SCENARIO.svg].
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Random seed (radio, sensor noise) [default: the scenario's].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    #[arg(long, value_enum, default_value = "native")]
+    pub firmware: FirmwareArg,
+    /// Run no faster than the wall clock.
+    #[arg(long)]
+    pub realtime: bool,
+}
+
+pub fn run(args: SimArgs) -> anyhow::Result<()> {
+    let scenario = super::load_scenario(&args.scenario)?;
+    let firmware = match args.firmware {
+        FirmwareArg::Native => Firmware::Native,
+        FirmwareArg::Qemu => {
+            bail!("--firmware qemu: the QEMU firmware runner is not built yet (firmware issue)")
+        }
+    };
+    let name = scenario.name.clone();
+    let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
+    options.firmware = firmware;
+    options.realtime = args.realtime;
+    let (report, world) = simulate(scenario, options).context("the simulation failed")?;
+
+    let report_path = args
+        .report
+        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.json")));
+    let plot_path = args
+        .plot
+        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.svg")));
+    for p in [&report_path, &plot_path] {
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create {}", dir.display()))?;
+        }
+    }
+    let json = serde_json::to_string_pretty(&report)?;
+    std::fs::write(&report_path, json + "\n")
+        .with_context(|| format!("cannot write {}", report_path.display()))?;
+    hil_sim::plot::write_svg(&world, &report, &plot_path)
+        .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", plot_path.display()))?;
+    print_table(&report, &report_path, &plot_path);
+    Ok(())
+}
+
+fn num(v: Option<f64>) -> String {
+    v.map_or("—".to_string(), |v| format!("{v:.2}"))
+}
+
+fn print_table(r: &Report, report_path: &Path, plot_path: &Path) {
+    let rtf = if r.wall_time_s > 0.0 {
+        r.sim_time_s / r.wall_time_s
+    } else {
+        f64::INFINITY
+    };
+    println!(
+        "{} · seed {} · {} firmware · {:.1} s simulated in {:.2} s ({:.0}× real time)",
+        r.scenario, r.seed, r.firmware, r.sim_time_s, r.wall_time_s, rtf
+    );
+    match r.time_to_goal_s {
+        Some(t) => println!("goal reached after {t:.1} s"),
+        None => println!("goal NOT reached"),
+    }
+    let names: Vec<String> = r
+        .robots
+        .iter()
+        .map(|x| format!("{} {}", x.role, x.id))
+        .collect();
+    print!("{:<34}", "");
+    for n in &names {
+        print!("{n:>12}");
+    }
+    println!("   paper (L / F1 / F2)");
+    let row = |label: &str, values: Vec<String>, paper: &str| {
+        print!("{label:<34}");
+        for v in values {
+            print!("{v:>12}");
+        }
+        println!("   {paper}");
+    };
+    row(
+        "average velocity (m/s)",
+        r.robots
+            .iter()
+            .map(|x| num(Some(x.avg_speed_mps)))
+            .collect(),
+        "0.40 / 0.39 / 0.41",
+    );
+    row(
+        "average |angular velocity| (rad/s)",
+        r.robots
+            .iter()
+            .map(|x| num(Some(x.avg_abs_omega_radps)))
+            .collect(),
+        "0.60 / 0.59 / 0.61",
+    );
+    row(
+        "max tracking error (m)",
+        r.robots
+            .iter()
+            .map(|x| num(x.max_tracking_error_m))
+            .collect(),
+        "— / 0.35 / 0.34",
+    );
+    row(
+        "stable max tracking error (m)",
+        r.robots
+            .iter()
+            .map(|x| num(x.stable_max_tracking_error_m))
+            .collect(),
+        "< 0.1 (stable phases)",
+    );
+    println!(
+        "collisions {} · min obstacle clearance {:.2} m · min robot separation {:.2} m · convergence {}",
+        r.collisions,
+        r.min_obstacle_clearance_m,
+        r.min_robot_separation_m,
+        r.convergence_time_s.map_or("never".to_string(), |t| format!("{t:.1} s"))
+    );
+    for t in &r.transformations {
+        println!(
+            "transformation to {} at {:.1} s, done in {} s (paper: within 5 s)",
+            t.to,
+            t.start_s,
+            num(t.duration_s)
+        );
+    }
+    println!(
+        "link: {} frames sent, {} delivered, {} rejected",
+        r.link.frames_sent, r.link.frames_delivered, r.link.frames_rejected
+    );
+    println!(
+        "report {} · figure {}",
+        report_path.display(),
+        plot_path.display()
+    );
+}

@@ -1,0 +1,62 @@
+//! README's first command, as a user runs it: `basestation sim` writes a report with the
+//! public keys and a figure.
+
+use std::process::Command;
+
+#[test]
+fn basestation_sim_writes_report_and_figure() {
+    let dir = std::env::temp_dir().join(format!("e2e-sim-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let report = dir.join("r.json");
+    let plot = dir.join("f.svg");
+    let bin = env!("CARGO_MANIFEST_DIR").to_string() + "/../target/release/basestation";
+    let status = Command::new(&bin)
+        .args(["sim", "paper-passage", "--seed", "3"])
+        .arg("--report")
+        .arg(&report)
+        .arg("--plot")
+        .arg(&plot)
+        .status()
+        .unwrap_or_else(|e| panic!("{bin}: {e} (build it with cargo build --release -p host)"));
+    assert!(status.success());
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for key in [
+        "schema_version",
+        "scenario",
+        "seed",
+        "firmware",
+        "sim_time_s",
+        "wall_time_s",
+        "goal_reached",
+        "time_to_goal_s",
+        "collisions",
+        "min_obstacle_clearance_m",
+        "min_robot_separation_m",
+        "convergence_time_s",
+        "robots",
+        "transformations",
+        "link",
+    ] {
+        assert!(r.get(key).is_some(), "report lacks {key}");
+    }
+    assert_eq!(r["schema_version"], 1);
+    assert_eq!(r["seed"], 3);
+    assert_eq!(r["firmware"], "native");
+    for key in ["frames_sent", "frames_delivered", "frames_rejected"] {
+        assert!(r["link"][key].is_u64(), "link.{key}");
+    }
+    let robot = &r["robots"][1];
+    for key in [
+        "id",
+        "role",
+        "avg_speed_mps",
+        "avg_abs_omega_radps",
+        "max_tracking_error_m",
+        "stable_max_tracking_error_m",
+    ] {
+        assert!(robot.get(key).is_some(), "robots[1] lacks {key}");
+    }
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("tracking error"));
+}

@@ -1,0 +1,45 @@
+//! Shared helpers: shipped scenarios, runs, and the bounds the issues set.
+#![allow(dead_code)]
+
+use base_station::scenario::Scenario;
+use hil_sim::metrics::Report;
+use hil_sim::run::simulate;
+use hil_sim::world::{SimOptions, World};
+
+pub fn shipped(name: &str) -> Scenario {
+    let path = format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+    Scenario::load(std::path::Path::new(&path)).expect("shipped scenario loads")
+}
+
+pub fn run(s: Scenario, seed: u64) -> (Report, World) {
+    simulate(s, SimOptions::new(seed)).expect("native brains do not fail")
+}
+
+/// The bounds of the hil-sim issue, checked on one report.
+pub fn assert_paper_bounds(r: &Report) {
+    let name = &r.scenario;
+    assert!(r.goal_reached, "{name}: goal not reached");
+    assert_eq!(r.collisions, 0, "{name}: contacts");
+    assert!(
+        r.min_obstacle_clearance_m >= 0.1,
+        "{name}: clearance {}",
+        r.min_obstacle_clearance_m
+    );
+    assert!(r.convergence_time_s.is_some(), "{name}: never converged");
+    for robot in r.robots.iter().filter(|x| x.role == "follower") {
+        let max = robot.max_tracking_error_m.expect("followers have an error");
+        let stable = robot
+            .stable_max_tracking_error_m
+            .expect("there are stable phases");
+        assert!(
+            max <= 0.35,
+            "{name}: follower {} max tracking error {max}",
+            robot.id
+        );
+        assert!(
+            stable <= 0.1,
+            "{name}: follower {} stable tracking error {stable}",
+            robot.id
+        );
+    }
+}
