@@ -10,7 +10,10 @@ use hil_sim::run::simulate;
 use hil_sim::world::SimOptions;
 
 fn paper_obstacles() -> Scenario {
-    let path = format!("{}/../scenarios/paper-obstacles.toml", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/../scenarios/paper-obstacles.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
     Scenario::load(std::path::Path::new(&path)).unwrap()
 }
 
@@ -27,7 +30,11 @@ fn fleet(n: usize) -> Scenario {
     s.robots.push(RobotEntry {
         id: 0,
         role: Role::Leader,
-        start: StartPose { x: 0.0, y: 0.0, heading_deg: 0.0 },
+        start: StartPose {
+            x: 0.0,
+            y: 0.0,
+            heading_deg: 0.0,
+        },
         initial_speed: 0.0,
     });
     for k in 0..n - 1 {
@@ -40,7 +47,11 @@ fn fleet(n: usize) -> Scenario {
         s.robots.push(RobotEntry {
             id: k as u16 + 1,
             role: Role::Follower,
-            start: StartPose { x: x - 0.2, y, heading_deg: 0.0 },
+            start: StartPose {
+                x: x - 0.2,
+                y,
+                heading_deg: 0.0,
+            },
             initial_speed: 0.0,
         });
     }
@@ -62,7 +73,10 @@ fn main() {
     if !std::env::args().any(|a| a == "--bench") {
         return;
     }
-    println!("{:<18} {:>7} {:>10} {:>10} {:>12} {:>14}", "scenario", "robots", "sim (s)", "wall (s)", "real-time ×", "µs/robot·s");
+    println!(
+        "{:<18} {:>7} {:>10} {:>10} {:>12} {:>14}",
+        "scenario", "robots", "sim (s)", "wall (s)", "real-time ×", "µs/robot·s"
+    );
     let runs = [
         measure(paper_obstacles()),
         measure(fleet(10)),
