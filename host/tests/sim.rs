@@ -9,15 +9,14 @@ fn basestation_sim_writes_report_and_figure() {
     std::fs::create_dir_all(&dir).unwrap();
     let report = dir.join("r.json");
     let plot = dir.join("f.svg");
-    let bin = env!("CARGO_MANIFEST_DIR").to_string() + "/../target/release/basestation";
-    let status = Command::new(&bin)
+    let status = Command::new(env!("CARGO_BIN_EXE_basestation"))
         .args(["sim", "paper-passage", "--seed", "3"])
         .arg("--report")
         .arg(&report)
         .arg("--plot")
         .arg(&plot)
         .status()
-        .unwrap_or_else(|e| panic!("{bin}: {e} (build it with cargo build --release -p host)"));
+        .unwrap();
     assert!(status.success());
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
