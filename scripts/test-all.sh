@@ -10,6 +10,20 @@ if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
     rustup target add thumbv7em-none-eabihf
 fi
 
+step "qemu-system-arm (the firmware's SIL runs in QEMU)"
+if ! command -v qemu-system-arm >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null
+    else
+        echo "qemu-system-arm is missing: run  sudo apt-get install -y qemu-system-arm  and try again" >&2
+        exit 1
+    fi
+fi
+qemu-system-arm --version | head -n 1
+
+step "firmware for both boards (QEMU mps2-an386, NUCLEO-F411RE), size budget"
+./scripts/build-firmware.sh
+
 step "no_std crates build for the MCU target"
 cargo build --locked --release --target thumbv7em-none-eabihf -p protocol -p control-core
 

@@ -1,6 +1,9 @@
 //! A robot's brain: the control code that runs on its MCU. The native brain is the control
-//! core compiled for the host; the QEMU brain (firmware issue) runs the real firmware ELF.
-//! Both see the same radio bytes and the same body.
+//! core compiled for the host; the QEMU brain ([`crate::qemu`]) runs the real firmware
+//! ELF. Both see the same radio bytes, the same sensors, the same clock.
+//!
+//! A step is split in two so that the world can start every robot's step before waiting
+//! for any (QEMU processes then run in parallel).
 
 use std::fmt;
 
@@ -22,31 +25,50 @@ impl fmt::Display for BrainError {
 
 impl std::error::Error for BrainError {}
 
+/// Frames a robot's radio rejected: the total, and by reason where the brain can tell.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BrainRejects {
+    pub total: u32,
+    pub by_reason: Option<RejectCounts>,
+}
+
 pub trait Brain {
-    /// Radio bytes arrive (already delayed by the radio); answers go to `tx` at once.
-    fn radio_rx(&mut self, bytes: &[u8], now_ms: u32, tx: &mut Vec<u8>) -> Result<(), BrainError>;
-    /// One control period: sensors in; motor duties out, radio bytes appended to `tx`.
-    fn tick(
+    /// Starts a step at `local_us` (the robot's own clock: µs since it booted): the radio
+    /// bytes that arrived since the last step, then, with `sensors`, a control period.
+    fn step_start(
         &mut self,
-        now_ms: u32,
-        sensors: &Sensors,
-        tx: &mut Vec<u8>,
-    ) -> Result<MotorOutput, BrainError>;
+        local_us: u64,
+        radio: &[u8],
+        sensors: Option<&Sensors>,
+    ) -> Result<(), BrainError>;
+    /// Ends it: radio bytes to transmit go to `tx`; motor duties if a period ran.
+    fn step_finish(&mut self, tx: &mut Vec<u8>) -> Result<Option<MotorOutput>, BrainError>;
     /// The robot's mode, for logs and plots.
     fn mode(&self) -> RobotMode;
-    /// Frames this robot's radio rejected, by reason.
-    fn rejects(&self) -> RejectCounts;
+    fn rejects(&self) -> BrainRejects;
+    /// SysTick counts of each control step, where the brain measures them (firmware).
+    fn step_cycles(&self) -> Vec<u32> {
+        Vec::new()
+    }
+    /// Makes the firmware fail (the harness's own tests); only firmware brains can.
+    fn inject(&mut self, fault: protocol::body::FirmwareFault) -> Result<(), BrainError> {
+        Err(BrainError(format!("this brain cannot inject {fault:?}")))
+    }
 }
 
 /// The control core, natively.
 pub struct NativeBrain {
     node: RobotNode,
+    tx: Vec<u8>,
+    out: Option<MotorOutput>,
 }
 
 impl NativeBrain {
     pub fn new(identity: Identity, key: FleetKey, config: RobotConfig) -> Self {
         Self {
             node: RobotNode::new(identity, key, config),
+            tx: Vec::new(),
+            out: None,
         }
     }
 
@@ -56,28 +78,34 @@ impl NativeBrain {
 }
 
 impl Brain for NativeBrain {
-    fn radio_rx(&mut self, bytes: &[u8], now_ms: u32, tx: &mut Vec<u8>) -> Result<(), BrainError> {
+    fn step_start(
+        &mut self,
+        local_us: u64,
+        radio: &[u8],
+        sensors: Option<&Sensors>,
+    ) -> Result<(), BrainError> {
+        let now_ms = (local_us / 1000) as u32;
+        let tx = &mut self.tx;
         self.node
-            .receive(bytes, now_ms, &mut |b| tx.extend_from_slice(b));
+            .receive(radio, now_ms, &mut |b| tx.extend_from_slice(b));
+        self.out = sensors.map(|s| self.node.tick(now_ms, s, &mut |b| tx.extend_from_slice(b)));
         Ok(())
     }
 
-    fn tick(
-        &mut self,
-        now_ms: u32,
-        sensors: &Sensors,
-        tx: &mut Vec<u8>,
-    ) -> Result<MotorOutput, BrainError> {
-        Ok(self
-            .node
-            .tick(now_ms, sensors, &mut |b| tx.extend_from_slice(b)))
+    fn step_finish(&mut self, tx: &mut Vec<u8>) -> Result<Option<MotorOutput>, BrainError> {
+        tx.append(&mut self.tx);
+        Ok(self.out.take())
     }
 
     fn mode(&self) -> RobotMode {
         self.node.controller().mode()
     }
 
-    fn rejects(&self) -> RejectCounts {
-        self.node.link().stats().rejects
+    fn rejects(&self) -> BrainRejects {
+        let r = self.node.link().stats().rejects;
+        BrainRejects {
+            total: r.total(),
+            by_reason: Some(r),
+        }
     }
 }

@@ -11,6 +11,7 @@ pub mod brain;
 pub mod metrics;
 pub mod plant;
 pub mod plot;
+pub mod qemu;
 pub mod radio;
 pub mod run;
 pub mod world;

@@ -15,18 +15,25 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
     let wall = Instant::now();
     let firmware = options.firmware.name();
     let seed = options.seed;
-    let mut world = World::new(scenario, options);
+    let mut world = World::new(scenario, options)?;
     world.run()?;
     let wall_time_s = wall.elapsed().as_secs_f64();
 
+    // Rejects by reason from every receiver that can tell them (the base station, native
+    // robots); the total also counts what firmware robots report in their telemetry.
     let mut rejects = world.station.rejects();
+    let mut total = rejects.total() as u64;
     for r in &world.robots {
-        rejects.merge(&r.brain.rejects());
+        let b = r.brain.rejects();
+        total += b.total as u64;
+        if let Some(by) = b.by_reason {
+            rejects.merge(&by);
+        }
     }
     let link = LinkReport {
         frames_sent: world.radio.stats.frames_sent,
         frames_delivered: world.radio.stats.frames_delivered,
-        frames_rejected: rejects.total() as u64,
+        frames_rejected: total,
         rejects_by_reason: by_reason(&rejects),
     };
     let s = &world.scenario;

@@ -32,12 +32,15 @@ use crate::radio::{NodeId, Radio, RadioParams};
 pub enum Firmware {
     /// The control core compiled for the host.
     Native,
+    /// The real firmware ELF, one QEMU per robot.
+    Qemu,
 }
 
 impl Firmware {
     pub fn name(self) -> &'static str {
         match self {
             Firmware::Native => "native",
+            Firmware::Qemu => "qemu",
         }
     }
 }
@@ -49,6 +52,8 @@ pub struct SimOptions {
     pub realtime: bool,
     /// Keep running this long after the goal is reached (followers settle), s.
     pub settle_s: f64,
+    /// A firmware brain that takes longer than this (wall clock) for a step has hung.
+    pub step_timeout: std::time::Duration,
 }
 
 impl SimOptions {
@@ -58,6 +63,7 @@ impl SimOptions {
             firmware: Firmware::Native,
             realtime: false,
             settle_s: 5.0,
+            step_timeout: crate::qemu::STEP_TIMEOUT,
         }
     }
 }
@@ -100,11 +106,15 @@ pub fn robot_config(s: &Scenario) -> RobotConfig {
 
 /// The simulation's fleet key: derived from the seed. Simulation only; real runs take
 /// the key from a file.
-pub fn sim_key(seed: u64) -> FleetKey {
+pub fn sim_key_bytes(seed: u64) -> [u8; 32] {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_f1ee_7000_0001);
     let mut key = [0u8; 32];
     rng.fill(&mut key);
-    FleetKey::from_bytes(&key)
+    key
+}
+
+pub fn sim_key(seed: u64) -> FleetKey {
+    FleetKey::from_bytes(&sim_key_bytes(seed))
 }
 
 pub struct SimRobot {
@@ -116,6 +126,8 @@ pub struct SimRobot {
     phase_us: u64,
     duty: MotorOutput,
     fixes: VecDeque<(u64, PoseFixSample)>,
+    /// Radio bytes that arrived since this robot's last step.
+    inbox: Vec<u8>,
 }
 
 pub struct World {
@@ -155,7 +167,7 @@ fn ray_circle(o: DVec2, dir: DVec2, c: DVec2, r: f64) -> Option<f64> {
 }
 
 impl World {
-    pub fn new(scenario: Scenario, options: SimOptions) -> Self {
+    pub fn new(scenario: Scenario, options: SimOptions) -> Result<Self, BrainError> {
         let mut master = ChaCha8Rng::seed_from_u64(options.seed);
         let key = sim_key(options.seed);
         let station = BaseStation::new(
@@ -186,12 +198,20 @@ impl World {
             dead_band: r.motor_dead_band,
         };
         let cfg = robot_config(&scenario);
+        if options.firmware == Firmware::Qemu && cfg != RobotConfig::DEFAULT {
+            return Err(BrainError(
+                "--firmware qemu: the firmware image carries the default robot parameters; \
+                 this scenario changes [robot] or [follower] values"
+                    .into(),
+            ));
+        }
+        let elf = crate::qemu::firmware_elf();
         let mut node_of = HashMap::new();
         let robots = scenario
             .robots
             .iter()
             .enumerate()
-            .map(|(i, e)| {
+            .map(|(i, e)| -> Result<SimRobot, BrainError> {
                 node_of.insert(e.id, i + 1);
                 let mut body = Body::new(
                     params,
@@ -210,8 +230,16 @@ impl World {
                 };
                 let brain: Box<dyn Brain> = match options.firmware {
                     Firmware::Native => Box::new(NativeBrain::new(identity, key.clone(), cfg)),
+                    Firmware::Qemu => Box::new(crate::qemu::QemuBrain::spawn(
+                        &elf,
+                        e.id,
+                        e.role == Role::Leader,
+                        1,
+                        sim_key_bytes(options.seed),
+                        options.step_timeout,
+                    )?),
                 };
-                SimRobot {
+                Ok(SimRobot {
                     id: e.id,
                     role: e.role,
                     body,
@@ -220,12 +248,13 @@ impl World {
                     phase_us: (master.random_range(0..100) * 1000) as u64,
                     duty: MotorOutput::default(),
                     fixes: VecDeque::new(),
-                }
+                    inbox: Vec::new(),
+                })
             })
-            .collect();
+            .collect::<Result<Vec<_>, _>>()?;
         let map = scenario.build_map();
         let recorder = Recorder::new(&scenario);
-        Self {
+        Ok(Self {
             loc_rng: ChaCha8Rng::seed_from_u64(master.random()),
             map,
             station,
@@ -237,7 +266,7 @@ impl World {
             options,
             t_us: 0,
             goal_at_us: None,
-        }
+        })
     }
 
     /// The addressed receivers of a frame (unparseable: everyone, who will reject it).
@@ -292,16 +321,13 @@ impl World {
         let t = self.t_us;
         let now_ms = (t / 1000) as u32;
 
-        // Radio arrivals.
+        // Radio arrivals: the base station takes its bytes at once; each robot gets its
+        // own at its next step (this one, if it is booted).
         for (to, bytes) in self.radio.arrivals(t) {
             if to == 0 {
                 self.station.receive(&bytes, now_ms);
             } else {
-                let mut tx = Vec::new();
-                self.robots[to - 1]
-                    .brain
-                    .radio_rx(&bytes, now_ms, &mut tx)?;
-                self.transmit(to, &tx);
+                self.robots[to - 1].inbox.extend_from_slice(&bytes);
             }
         }
 
@@ -334,25 +360,46 @@ impl World {
             self.transmit(0, &out);
         }
 
-        // Robots at 10 Hz, each on its own phase.
-        let due: Vec<usize> = (0..self.robots.len())
-            .filter(|i| (t + PERIOD_US - self.robots[*i].phase_us) % PERIOD_US < step_us)
+        // Robots: each boots at its phase and runs a control period every 100 ms of its
+        // own clock after that. The radio bytes that arrived since its last period are
+        // handed over first (as its UART would have buffered them): one step per period
+        // keeps the firmware lockstep to 10 round trips per robot-second.
+        let due: Vec<bool> = self
+            .robots
+            .iter()
+            .map(|r| t >= r.phase_us + PERIOD_US && (t - r.phase_us) % PERIOD_US < step_us)
             .collect();
-        let grid = (!due.is_empty()).then(|| self.robot_grid());
-        for i in due {
-            let proximity = self.proximity(i, grid.as_ref().expect("built when due"));
-            let r = &mut self.robots[i];
-            let mut newest = None;
-            while r.fixes.front().is_some_and(|(at, _)| *at <= t) {
-                newest = r.fixes.pop_front().map(|f| f.1);
-            }
-            let sensors = Sensors {
-                ticks: r.body.ticks(),
-                pose_fix: newest,
-                proximity,
+        let grid = due.iter().any(|d| *d).then(|| self.robot_grid());
+        let mut stepping = Vec::new();
+        for i in (0..self.robots.len()).filter(|i| due[*i]) {
+            let sensors = {
+                let proximity = self.proximity(i, grid.as_ref().expect("built when due"));
+                let r = &mut self.robots[i];
+                let mut newest = None;
+                while r.fixes.front().is_some_and(|(at, _)| *at <= t) {
+                    newest = r.fixes.pop_front().map(|f| f.1);
+                }
+                let phase_ms = (r.phase_us / 1000) as u32;
+                Some(Sensors {
+                    ticks: r.body.ticks(),
+                    pose_fix: newest.map(|f| PoseFixSample {
+                        time_ms: f.time_ms.wrapping_sub(phase_ms),
+                        ..f
+                    }),
+                    proximity,
+                })
             };
+            let r = &mut self.robots[i];
+            let inbox = std::mem::take(&mut r.inbox);
+            r.brain
+                .step_start(t - r.phase_us, &inbox, sensors.as_ref())?;
+            stepping.push(i);
+        }
+        for i in stepping {
             let mut tx = Vec::new();
-            r.duty = r.brain.tick(now_ms, &sensors, &mut tx)?;
+            if let Some(out) = self.robots[i].brain.step_finish(&mut tx)? {
+                self.robots[i].duty = out;
+            }
             self.transmit(i + 1, &tx);
         }
 

@@ -26,6 +26,8 @@ enum Command {
     Decode(cli::decode::DecodeArgs),
     /// Simulate the fleet (software in the loop) and report against the paper.
     Sim(cli::sim::SimArgs),
+    /// Write a robot's configuration page (id, role, fleet key) for flashing.
+    RobotConfig(cli::robot_config::RobotConfigArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -46,6 +48,7 @@ fn main() -> std::process::ExitCode {
         Command::Check(args) => cli::check::run(args),
         Command::Decode(args) => cli::decode::run(args),
         Command::Sim(args) => cli::sim::run(args),
+        Command::RobotConfig(args) => cli::robot_config::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

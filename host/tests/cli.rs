@@ -237,3 +237,39 @@ fn run_over_udp_challenges_every_robot() {
     assert!(child.wait().unwrap().success());
     assert_eq!(hellos.len(), 3);
 }
+
+#[test]
+fn robot_config_writes_a_page_the_firmware_accepts() {
+    let dir = std::env::temp_dir().join(format!("basestation-cfg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let page = dir.join("robot.cfg");
+    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .args(["robot-config", "--id", "3", "--role", "leader", "-o"])
+        .arg(&page)
+        .env("SWEEPER_FLEET_KEY", "ab".repeat(32))
+        .env_remove("SWEEPER_KEY_FILE")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(&page).unwrap();
+    let c = protocol::config_page::ConfigPage::decode(&bytes).expect("valid page");
+    assert_eq!((c.id, c.leader, c.key), (3, true, [0xab; 32]));
+    let (code, _, err) = basestation(
+        &[
+            "robot-config",
+            "--id",
+            "3",
+            "--role",
+            "leader",
+            "-o",
+            "/dev/null",
+        ],
+        None,
+    );
+    assert_eq!(code, 1);
+    assert!(err.contains("no fleet key"), "{err}");
+}

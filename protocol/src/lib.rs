@@ -21,6 +21,8 @@
 extern crate std;
 
 pub mod auth;
+pub mod body;
+pub mod config_page;
 pub mod frame;
 pub mod link;
 pub mod messages;

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::{Args, ValueEnum};
 use hil_sim::metrics::Report;
 use hil_sim::run::simulate;
@@ -44,9 +44,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     let scenario = super::load_scenario(&args.scenario)?;
     let firmware = match args.firmware {
         FirmwareArg::Native => Firmware::Native,
-        FirmwareArg::Qemu => {
-            bail!("--firmware qemu: the QEMU firmware runner is not built yet (firmware issue)")
-        }
+        FirmwareArg::Qemu => Firmware::Qemu,
     };
     let name = scenario.name.clone();
     let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
@@ -75,6 +73,20 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+// Writes to stdout, ignoring a closed pipe (`| head`) instead of panicking.
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($t)*);
+    }};
+}
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
 fn num(v: Option<f64>) -> String {
     v.map_or("—".to_string(), |v| format!("{v:.2}"))
 }
@@ -85,30 +97,35 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path) {
     } else {
         f64::INFINITY
     };
-    println!(
+    outln!(
         "{} · seed {} · {} firmware · {:.1} s simulated in {:.2} s ({:.0}× real time)",
-        r.scenario, r.seed, r.firmware, r.sim_time_s, r.wall_time_s, rtf
+        r.scenario,
+        r.seed,
+        r.firmware,
+        r.sim_time_s,
+        r.wall_time_s,
+        rtf
     );
     match r.time_to_goal_s {
-        Some(t) => println!("goal reached after {t:.1} s"),
-        None => println!("goal NOT reached"),
+        Some(t) => outln!("goal reached after {t:.1} s"),
+        None => outln!("goal NOT reached"),
     }
     let names: Vec<String> = r
         .robots
         .iter()
         .map(|x| format!("{} {}", x.role, x.id))
         .collect();
-    print!("{:<34}", "");
+    out!("{:<34}", "");
     for n in &names {
-        print!("{n:>12}");
+        out!("{n:>12}");
     }
-    println!("   paper (L / F1 / F2)");
+    outln!("   paper (L / F1 / F2)");
     let row = |label: &str, values: Vec<String>, paper: &str| {
-        print!("{label:<34}");
+        out!("{label:<34}");
         for v in values {
-            print!("{v:>12}");
+            out!("{v:>12}");
         }
-        println!("   {paper}");
+        outln!("   {paper}");
     };
     row(
         "average velocity (m/s)",
@@ -142,7 +159,7 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path) {
             .collect(),
         "< 0.1 (stable phases)",
     );
-    println!(
+    outln!(
         "collisions {} · min obstacle clearance {:.2} m · min robot separation {:.2} m · convergence {}",
         r.collisions,
         r.min_obstacle_clearance_m,
@@ -150,18 +167,20 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path) {
         r.convergence_time_s.map_or("never".to_string(), |t| format!("{t:.1} s"))
     );
     for t in &r.transformations {
-        println!(
+        outln!(
             "transformation to {} at {:.1} s, done in {} s (paper: within 5 s)",
             t.to,
             t.start_s,
             num(t.duration_s)
         );
     }
-    println!(
+    outln!(
         "link: {} frames sent, {} delivered, {} rejected",
-        r.link.frames_sent, r.link.frames_delivered, r.link.frames_rejected
+        r.link.frames_sent,
+        r.link.frames_delivered,
+        r.link.frames_rejected
     );
-    println!(
+    outln!(
         "report {} · figure {}",
         report_path.display(),
         plot_path.display()

@@ -1,0 +1,233 @@
+//! NUCLEO-F411RE (STM32F411RE, Cortex-M4F, 100 MHz; its ST-LINK speaks to probe-rs).
+//!
+//! Pin map (Arduino header names in brackets):
+//!
+//! | function | pins | peripheral |
+//! | --- | --- | --- |
+//! | radio modem UART, 115200 8N1 | TX PA9 [D8], RX PA10 [D2] | USART1 |
+//! | left motor PWM (20 kHz) / direction | PA0 [A0] / PB0 [A3] | TIM2 CH1, GPIO |
+//! | right motor PWM (20 kHz) / direction | PA1 [A1] / PA4 [A2] | TIM2 CH2, GPIO |
+//! | left encoder A / B | PA6 [D12] / PA7 [D11] | TIM3 encoder mode |
+//! | right encoder A / B | PB6 [D10] / PB7 [CN7-21] | TIM4 encoder mode |
+//!
+//! Configuration page: flash sector 6 (0x0804_0000, written with `probe-rs download`);
+//! boot counter: flash sector 7 (0x0806_0000), one word appended per boot.
+
+use core::cell::RefCell;
+
+use control_core::controller::{MotorOutput, Sensors};
+use embassy_stm32::flash::Flash;
+use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
+use embassy_stm32::peripherals::{IWDG, TIM2, TIM3, TIM4};
+use embassy_stm32::time::khz;
+use embassy_stm32::timer::low_level::CountingMode;
+use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
+use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
+use embassy_stm32::usart::{self, BufferedUart};
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{bind_interrupts, peripherals};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use protocol::config_page::{ConfigPage, CONFIG_PAGE_LEN};
+use static_cell::StaticCell;
+
+use crate::robot::Config;
+
+use {defmt_rtt as _, panic_probe as _};
+
+bind_interrupts!(struct Irqs {
+    USART1 => usart::BufferedInterruptHandler<peripherals::USART1>;
+});
+
+pub type RadioRx = usart::BufferedUartRx<'static>;
+pub type RadioTx = usart::BufferedUartTx<'static>;
+
+const CONFIG_OFFSET: u32 = 0x4_0000;
+const BOOT_LOG_OFFSET: u32 = 0x6_0000;
+const BOOT_LOG_LEN: u32 = 0x2_0000;
+
+static WATCHDOG: Mutex<
+    CriticalSectionRawMutex,
+    RefCell<Option<IndependentWatchdog<'static, IWDG>>>,
+> = Mutex::new(RefCell::new(None));
+
+pub struct Board {
+    pub radio_rx: RadioRx,
+    pub radio_tx: RadioTx,
+    pub body: Body,
+    pub config: Option<Config>,
+}
+
+/// Increments the boot counter: a log of words in sector 7, the newest one last.
+fn next_boot_count(flash: &mut Flash<'_, embassy_stm32::flash::Blocking>) -> u32 {
+    let mut word = [0u8; 4];
+    let mut last = 0u32;
+    let mut slot = 0u32;
+    while slot < BOOT_LOG_LEN {
+        if flash
+            .blocking_read(BOOT_LOG_OFFSET + slot, &mut word)
+            .is_err()
+        {
+            break;
+        }
+        let v = u32::from_le_bytes(word);
+        if v == u32::MAX {
+            break;
+        }
+        last = v;
+        slot += 4;
+    }
+    let next = last.wrapping_add(1);
+    if slot >= BOOT_LOG_LEN {
+        let _ = flash.blocking_erase(BOOT_LOG_OFFSET, BOOT_LOG_OFFSET + BOOT_LOG_LEN);
+        slot = 0;
+    }
+    if flash
+        .blocking_write(BOOT_LOG_OFFSET + slot, &next.to_le_bytes())
+        .is_err()
+    {
+        defmt::error!("boot counter not written: sessions may repeat");
+    }
+    next
+}
+
+pub fn init() -> Board {
+    let p = embassy_stm32::init(Default::default());
+
+    let mut flash = Flash::new_blocking(p.FLASH);
+    let mut page = [0u8; CONFIG_PAGE_LEN];
+    let config = flash
+        .blocking_read(CONFIG_OFFSET, &mut page)
+        .ok()
+        .and_then(|_| ConfigPage::decode(&page))
+        .map(|c| Config {
+            id: c.id,
+            leader: c.leader,
+            boot_count: next_boot_count(&mut flash),
+            key: c.key,
+        });
+    if config.is_none() {
+        defmt::error!("no valid configuration page at 0x0804_0000: the robot will not drive");
+    }
+
+    static TX_BUF: StaticCell<[u8; 512]> = StaticCell::new();
+    static RX_BUF: StaticCell<[u8; 512]> = StaticCell::new();
+    let uart = BufferedUart::new(
+        p.USART1,
+        p.PA10,
+        p.PA9,
+        TX_BUF.init([0; 512]),
+        RX_BUF.init([0; 512]),
+        Irqs,
+        usart::Config::default(),
+    )
+    .expect("USART1 at 115200 8N1");
+    let (radio_tx, radio_rx) = uart.split();
+
+    let mut pwm = SimplePwm::new(
+        p.TIM2,
+        Some(PwmPin::new(p.PA0, OutputType::PushPull)),
+        Some(PwmPin::new(p.PA1, OutputType::PushPull)),
+        None,
+        None,
+        khz(20),
+        CountingMode::EdgeAlignedUp,
+    );
+    pwm.ch1().enable();
+    pwm.ch2().enable();
+    let left = Qei::new(p.TIM3, p.PA6, p.PA7, QeiConfig::default());
+    let right = Qei::new(p.TIM4, p.PB6, p.PB7, QeiConfig::default());
+
+    let mut wdg = IndependentWatchdog::new(p.IWDG, 500_000);
+    wdg.unleash();
+    WATCHDOG.lock(|w| *w.borrow_mut() = Some(wdg));
+
+    let mut core = cortex_m::Peripherals::take().expect("first and only take");
+    core.DCB.enable_trace();
+    core.DWT.enable_cycle_counter();
+
+    Board {
+        radio_rx,
+        radio_tx,
+        body: Body {
+            left,
+            right,
+            last: [0; 2],
+            ticks: [0; 2],
+            pwm,
+            dir: [
+                Output::new(p.PB0, Level::Low, Speed::Low),
+                Output::new(p.PA4, Level::Low, Speed::Low),
+            ],
+        },
+        config,
+    }
+}
+
+/// The robot's body: encoders in, motor PWM and direction out.
+pub struct Body {
+    left: Qei<'static, TIM3>,
+    right: Qei<'static, TIM4>,
+    last: [u16; 2],
+    ticks: [i32; 2],
+    pwm: SimplePwm<'static, TIM2>,
+    dir: [Output<'static>; 2],
+}
+
+impl Body {
+    pub fn sensors(&mut self) -> Sensors {
+        let now = [self.left.count(), self.right.count()];
+        for ((ticks, now), last) in self.ticks.iter_mut().zip(now).zip(self.last) {
+            // 16-bit timers: extend through the wrapping difference.
+            *ticks = ticks.wrapping_add(now.wrapping_sub(last) as i16 as i32);
+        }
+        self.last = now;
+        Sensors {
+            ticks: self.ticks,
+            pose_fix: None,
+            proximity: [None, None],
+        }
+    }
+
+    pub fn drive(&mut self, out: &MotorOutput) {
+        for (i, duty) in out.duty.iter().enumerate() {
+            let level = if *duty < 0.0 { Level::High } else { Level::Low };
+            self.dir[i].set_level(level);
+            let permille = (duty.abs().min(1.0) * 1000.0) as u32;
+            match i {
+                0 => self.pwm.ch1().set_duty_cycle_fraction(permille, 1000),
+                _ => self.pwm.ch2().set_duty_cycle_fraction(permille, 1000),
+            }
+        }
+    }
+}
+
+pub fn cycles() -> u32 {
+    cortex_m::peripheral::DWT::cycle_count()
+}
+
+pub fn cycles_since(start: u32) -> u32 {
+    cycles().wrapping_sub(start)
+}
+
+/// The real clock needs no lockstep bookkeeping.
+pub fn control_scheduled(_at_us: u64) {}
+
+/// Stops feeding the independent watchdog: the MCU resets within 0.5 s, its PWM pins go
+/// high-impedance and the motor drivers' pull-downs stop the motors.
+pub fn motors_off() {
+    defmt::error!("control loop stalled: waiting for the watchdog reset");
+}
+
+pub fn feed_watchdog() {
+    WATCHDOG.lock(|w| {
+        if let Some(w) = w.borrow_mut().as_mut() {
+            w.pet();
+        }
+    });
+}
+
+/// Every radio byte may be processed at once on real hardware.
+pub async fn radio_allowance() -> usize {
+    usize::MAX
+}

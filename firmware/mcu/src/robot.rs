@@ -1,0 +1,61 @@
+//! The robot's shared state: the node (control core + link) and the counters the tasks
+//! and the lockstep link read. Statics only.
+
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use control_core::config::{RobotConfig, Role};
+use control_core::node::{Identity, RobotNode};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use protocol::FleetKey;
+
+/// Who this robot is: from the configuration page (see `docs/firmware.md`).
+#[derive(Clone, Copy)]
+pub struct Config {
+    pub id: u16,
+    pub leader: bool,
+    pub boot_count: u32,
+    pub key: [u8; 32],
+}
+
+static NODE: Mutex<CriticalSectionRawMutex, RefCell<Option<RobotNode>>> =
+    Mutex::new(RefCell::new(None));
+
+/// Control periods run so far (the watchdog and the lockstep link watch it).
+pub static CONTROL_TICKS: AtomicU32 = AtomicU32::new(0);
+/// Radio bytes received and processed so far.
+pub static RADIO_RX_BYTES: AtomicU32 = AtomicU32::new(0);
+/// Radio bytes transmitted so far.
+pub static RADIO_TX_BYTES: AtomicU32 = AtomicU32::new(0);
+/// SysTick counts the last control step took.
+pub static STEP_CYCLES: AtomicU32 = AtomicU32::new(0);
+
+pub fn configure(c: Config) {
+    let identity = Identity {
+        id: c.id,
+        role: if c.leader {
+            Role::Leader
+        } else {
+            Role::Follower
+        },
+        boot_count: c.boot_count,
+    };
+    let node = RobotNode::new(identity, FleetKey::from_bytes(&c.key), RobotConfig::DEFAULT);
+    NODE.lock(|n| *n.borrow_mut() = Some(node));
+    defmt::info!(
+        "robot {} ({}) boot {}",
+        c.id,
+        if c.leader { "leader" } else { "follower" },
+        c.boot_count
+    );
+}
+
+/// Runs `f` on the node, if configured.
+pub fn with_node<R>(f: impl FnOnce(&mut RobotNode) -> R) -> Option<R> {
+    NODE.lock(|n| n.borrow_mut().as_mut().map(f))
+}
+
+pub fn count(counter: &AtomicU32, n: usize) {
+    counter.fetch_add(n as u32, Ordering::Release);
+}
