@@ -18,7 +18,8 @@ RAM_LIMIT=$((16 * 1024))
 status=0
 for board in ${BOARDS:-qemu nucleo}; do
     echo "==> firmware, board $board"
-    cargo build --locked --release --features "board-$board" --target thumbv7em-none-eabihf \
+    cargo build --locked --release --no-default-features --features "board-$board" \
+        --target thumbv7em-none-eabihf \
         --target-dir "target/$board"
     elf="target/$board/thumbv7em-none-eabihf/release/sweeper-firmware"
     # Sections: flash = vectors + code + read-only data + the initial values of .data;

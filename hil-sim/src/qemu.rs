@@ -158,7 +158,10 @@ impl QemuBrain {
             ))
         })?;
         let dir = std::env::temp_dir();
-        let tag = format!("sweeper-{}-{id}", std::process::id());
+        // Unique per brain: several worlds may run in one process (tests in parallel).
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tag = format!("sweeper-{}-{n}-{id}", std::process::id());
         let (p0, p1) = (
             dir.join(format!("{tag}-radio.sock")),
             dir.join(format!("{tag}-body.sock")),

@@ -9,7 +9,7 @@
 #![no_main]
 
 #[cfg(all(feature = "board-qemu", feature = "board-nucleo"))]
-compile_error!("select exactly one board: --features board-qemu or --features board-nucleo");
+compile_error!("select exactly one board: board-nucleo is the default; for QEMU use --no-default-features --features board-qemu");
 #[cfg(not(any(feature = "board-qemu", feature = "board-nucleo")))]
 compile_error!("select a board: --features board-qemu or --features board-nucleo");
 

@@ -1,0 +1,57 @@
+//! The firmware in QEMU: wall time and real-time factor of `paper-obstacles` with all three
+//! robots in QEMU, QEMU boot time, and instructions per control step on the MCU.
+//! `cargo bench -p hil-sim --bench qemu_speed` (needs qemu-system-arm and the firmware:
+//! `./scripts/build-firmware.sh`). Prints a table; one run is the measurement.
+//!
+//! Instructions: QEMU runs with `-icount shift=5` (each instruction advances the virtual
+//! clock by 2⁵ = 32 ns) and SysTick counts that clock at 25 MHz (40 ns), so one control step
+//! (node tick: L-φ law + PIDs + odometry + telemetry frame) takes counts × 40 / 32
+//! instructions.
+
+use std::time::Instant;
+
+use base_station::scenario::Scenario;
+use hil_sim::world::{Firmware, SimOptions, World};
+
+fn main() {
+    if !std::env::args().any(|a| a == "--bench") {
+        return;
+    }
+    let path = format!(
+        "{}/../scenarios/paper-obstacles.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let scenario = Scenario::load(std::path::Path::new(&path)).unwrap();
+    let mut options = SimOptions::new(1);
+    options.firmware = Firmware::Qemu;
+    let boot = Instant::now();
+    let mut world = World::new(scenario, options).expect("three QEMUs boot");
+    let boot_s = boot.elapsed().as_secs_f64();
+    let run = Instant::now();
+    world.run().expect("the run completes");
+    let wall = run.elapsed().as_secs_f64();
+    let sim = world.t_us as f64 / 1e6;
+    println!("QEMU boot of 3 robots (spawn, connect, configure): {boot_s:.3} s");
+    println!(
+        "paper-obstacles, 3 robots in QEMU: {sim:.1} s simulated in {wall:.2} s wall: {:.1}x real time",
+        sim / wall
+    );
+    println!(
+        "{:<8} {:>10} {:>16} {:>16} {:>16}",
+        "robot", "steps", "median insns", "p99 insns", "max insns"
+    );
+    for r in &world.robots {
+        let mut c: Vec<u32> = r.brain.step_cycles();
+        c.sort_unstable();
+        let insns = |v: u32| v as f64 * 40.0 / 32.0;
+        let at = |q: f64| c[((c.len() - 1) as f64 * q) as usize];
+        println!(
+            "{:<8} {:>10} {:>16.0} {:>16.0} {:>16.0}",
+            r.id,
+            c.len(),
+            insns(at(0.5)),
+            insns(at(0.99)),
+            insns(*c.last().unwrap())
+        );
+    }
+}
