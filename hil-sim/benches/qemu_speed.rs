@@ -37,21 +37,26 @@ fn main() {
         sim / wall
     );
     println!(
-        "{:<8} {:>10} {:>16} {:>16} {:>16}",
-        "robot", "steps", "median insns", "p99 insns", "max insns"
+        "{:<6} {:>8} {:>13} {:>8} {:>8} {:>16} {:>8}",
+        "robot", "periods", "control step", "p99", "max", "radio rx/period", "p99"
     );
+    let insns = |v: u32| v as f64 * 40.0 / 32.0;
+    let at = |c: &[u32], q: f64| c[((c.len() - 1) as f64 * q) as usize];
     for r in &world.robots {
         let mut c: Vec<u32> = r.brain.step_cycles();
+        let mut rx: Vec<u32> = r.brain.rx_cycles();
         c.sort_unstable();
-        let insns = |v: u32| v as f64 * 40.0 / 32.0;
-        let at = |q: f64| c[((c.len() - 1) as f64 * q) as usize];
+        rx.sort_unstable();
         println!(
-            "{:<8} {:>10} {:>16.0} {:>16.0} {:>16.0}",
+            "{:<6} {:>8} {:>13.0} {:>8.0} {:>8.0} {:>16.0} {:>8.0}",
             r.id,
             c.len(),
-            insns(at(0.5)),
-            insns(at(0.99)),
-            insns(*c.last().unwrap())
+            insns(at(&c, 0.5)),
+            insns(at(&c, 0.99)),
+            insns(*c.last().unwrap()),
+            insns(at(&rx, 0.5)),
+            insns(at(&rx, 0.99)),
         );
     }
+    println!("(instructions, medians unless marked)");
 }

@@ -50,6 +50,10 @@ pub trait Brain {
     fn step_cycles(&self) -> Vec<u32> {
         Vec::new()
     }
+    /// SysTick counts spent receiving radio frames per control period (firmware).
+    fn rx_cycles(&self) -> Vec<u32> {
+        Vec::new()
+    }
     /// Makes the firmware fail (the harness's own tests); only firmware brains can.
     fn inject(&mut self, fault: protocol::body::FirmwareFault) -> Result<(), BrainError> {
         Err(BrainError(format!("this brain cannot inject {fault:?}")))

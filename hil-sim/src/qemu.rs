@@ -58,6 +58,8 @@ pub struct QemuBrain {
     rejected: u32,
     /// SysTick counts of every control step (25 MHz virtual clock).
     step_cycles: Vec<u32>,
+    /// SysTick counts spent receiving radio frames, per control period.
+    rx_cycles: Vec<u32>,
     timeout: Duration,
 }
 
@@ -232,6 +234,7 @@ impl QemuBrain {
             mode: RobotMode::Idle,
             rejected: 0,
             step_cycles: Vec::new(),
+            rx_cycles: Vec::new(),
             timeout,
         };
         let config = ToMcu::Config(BodyConfig {
@@ -381,6 +384,7 @@ impl Brain for QemuBrain {
         }
         if done.ticked {
             self.step_cycles.push(done.step_cycles);
+            self.rx_cycles.push(done.rx_cycles);
         }
         Ok(done.ticked.then_some(MotorOutput { duty: done.duty }))
     }
@@ -398,6 +402,10 @@ impl Brain for QemuBrain {
 
     fn step_cycles(&self) -> Vec<u32> {
         self.step_cycles.clone()
+    }
+
+    fn rx_cycles(&self) -> Vec<u32> {
+        self.rx_cycles.clone()
     }
 
     fn inject(&mut self, fault: FirmwareFault) -> Result<(), BrainError> {

@@ -84,6 +84,9 @@ pub struct Done {
     pub ticked: bool,
     /// SysTick counts (25 MHz virtual clock under `-icount`) the last control step took.
     pub step_cycles: u32,
+    /// SysTick counts spent receiving radio bytes (deframing, verifying, decoding) in this
+    /// step.
+    pub rx_cycles: u32,
 }
 
 /// Encodes a body message as COBS bytes ending in 0x00.

@@ -30,6 +30,8 @@ pub static RADIO_RX_BYTES: AtomicU32 = AtomicU32::new(0);
 pub static RADIO_TX_BYTES: AtomicU32 = AtomicU32::new(0);
 /// SysTick counts the last control step took.
 pub static STEP_CYCLES: AtomicU32 = AtomicU32::new(0);
+/// SysTick counts spent in radio receive since the lockstep link last reported.
+pub static RX_CYCLES: AtomicU32 = AtomicU32::new(0);
 
 pub fn configure(c: Config) {
     let identity = Identity {

@@ -31,11 +31,13 @@ pub async fn radio_rx_task(mut rx: RadioRx) {
         let n = (end - start).min(allowed);
         let now_ms = Instant::now().as_millis() as u32;
         let mut answers: Vec<u8, 256> = Vec::new();
+        let started = board::cycles();
         robot::with_node(|node| {
             node.receive(&buf[start..start + n], now_ms, &mut |bytes| {
                 let _ = answers.extend_from_slice(bytes);
             })
         });
+        robot::count(&robot::RX_CYCLES, board::cycles_since(started) as usize);
         start += n;
         super::radio_send(&answers).await;
         robot::count(&robot::RADIO_RX_BYTES, n);

@@ -240,6 +240,7 @@ pub async fn body_task(spawner: Spawner, board: Board) {
             duty: critical_section::with(|cs| DUTY.borrow(cs).get()),
             ticked: due,
             step_cycles: robot::STEP_CYCLES.load(Ordering::Acquire),
+            rx_cycles: robot::RX_CYCLES.swap(0, Ordering::AcqRel),
         };
         send(&mut tx, &FromMcu::Done(done)).await;
     }
