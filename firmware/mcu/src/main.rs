@@ -2,9 +2,10 @@
 //! the tasks; the control code is `control-core`, the radio protocol `protocol`.
 //!
 //! Tasks: `control_task` (10 Hz: wheel PIDs, the L-φ law on followers, telemetry),
-//! `radio_rx_task` (frames in: decoder, authentication, replay window), `watchdog_task`
-//! (stalled control loop → motors off), and on the QEMU board `body_task` (the lockstep
-//! link to the simulated body). Statics and bounded queues only: no heap.
+//! `radio_rx_task` (frames in: decoder, authentication, replay window), `radio_tx_task`
+//! (telemetry and handshake answers out, from a bounded queue), `watchdog_task` (stalled
+//! control loop → motors off), and on the QEMU board `body_task` (the lockstep link to the
+//! simulated body). Statics and bounded queues only: no heap.
 #![no_std]
 #![no_main]
 

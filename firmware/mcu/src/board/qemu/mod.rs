@@ -232,8 +232,12 @@ pub async fn body_task(spawner: Spawner, board: Board) {
                 embassy_futures::yield_now().await;
             }
         }
-        // Let anything else the new time woke (the watchdog) run first.
+        // Let anything else the new time woke (the watchdog) run, and the transmit task
+        // write out what this step produced.
         embassy_futures::yield_now().await;
+        while !crate::tasks::radio_idle() {
+            embassy_futures::yield_now().await;
+        }
         let done = Done {
             time_us: step.time_us,
             radio_tx_bytes: robot::RADIO_TX_BYTES.load(Ordering::Acquire),
