@@ -101,6 +101,29 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
                 planner = ?station.planner().mode(),
                 "link"
             );
+            // Per-robot link health every 5 s: last seen, accepted, lost, rejects by reason.
+            if last_report.is_multiple_of(5) {
+                for peer in station.link().peers() {
+                    let seen = peer
+                        .last_rx_ms
+                        .map(|t| format!("{} ms ago", now_ms.wrapping_sub(t)))
+                        .unwrap_or_else(|| "never".into());
+                    let rejects: Vec<String> = protocol::Reject::ALL
+                        .iter()
+                        .filter(|r| peer.rejects.get(**r) > 0)
+                        .map(|r| format!("{}={}", r.name(), peer.rejects.get(*r)))
+                        .collect();
+                    tracing::info!(
+                        robot = ?peer.address,
+                        linked = peer.is_linked(),
+                        seen = %seen,
+                        accepted = peer.accepted,
+                        lost = peer.lost,
+                        rejects = %rejects.join(","),
+                        "robot link"
+                    );
+                }
+            }
         }
         if station.planner().arrived() && args.duration.is_none() {
             tracing::info!("goal reached");
