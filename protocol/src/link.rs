@@ -16,7 +16,12 @@
 //!
 //! See `docs/protocol.md` for the threat model.
 
-use heapless::Vec;
+use heapless::{Deque, Vec};
+
+/// Challenges kept per peer: answers to any of them are accepted.
+const OUTSTANDING: usize = 4;
+/// A challenge older than this is not accepted any more, ms.
+const CHALLENGE_LIFETIME_MS: u32 = 3000;
 
 use crate::auth::FleetKey;
 use crate::frame::{self, Address, EncodeError, Header};
@@ -70,7 +75,9 @@ pub struct Peer {
     tx_seq: u32,
     rx_unicast: Stream,
     rx_broadcast: Stream,
-    challenge: Option<(u64, u32)>,
+    /// Outstanding challenges (nonce, sent at), newest last: a slow link may answer an
+    /// earlier one after a newer one went out.
+    challenges: Deque<(u64, u32), OUTSTANDING>,
     last_hello_ms: Option<u32>,
     last_answer_ms: Option<u32>,
     /// Our clock when the last frame from this peer was accepted.
@@ -91,7 +98,7 @@ impl Peer {
             tx_seq: 0,
             rx_unicast: Stream::default(),
             rx_broadcast: Stream::default(),
-            challenge: None,
+            challenges: Deque::new(),
             last_hello_ms: None,
             last_answer_ms: None,
             last_rx_ms: None,
@@ -241,7 +248,11 @@ impl<const PEERS: usize> Link<PEERS> {
         let i = self.index(to).ok_or(EncodeError::UnknownPeer)?;
         let nonce = self.next_nonce;
         self.next_nonce = self.next_nonce.wrapping_add(1);
-        self.peers[i].challenge = Some((nonce, now_ms));
+        let pending = &mut self.peers[i].challenges;
+        if pending.is_full() {
+            pending.pop_front();
+        }
+        let _ = pending.push_back((nonce, now_ms));
         self.peers[i].last_hello_ms = Some(now_ms);
         self.send(to, now_ms, &Message::Hello(Hello { nonce }), out)
     }
@@ -329,13 +340,16 @@ impl<const PEERS: usize> Link<PEERS> {
                 })
             }
             Message::Welcome(welcome) => {
-                let Some((nonce, sent_ms)) = peer.challenge else {
+                let answered = peer.challenges.iter().find(|(n, sent)| {
+                    *n == welcome.nonce && now_ms.wrapping_sub(*sent) <= CHALLENGE_LIFETIME_MS
+                });
+                let Some(&(_, sent_ms)) = answered else {
                     return Err(Reject::Replay);
                 };
-                if welcome.nonce != nonce || header.to != self.me {
+                if header.to != self.me {
                     return Err(Reject::Replay);
                 }
-                peer.challenge = None;
+                peer.challenges.clear();
                 peer.session = Some(welcome.session);
                 peer.rx_unicast.last = Some(header.seq);
                 peer.rx_broadcast.last = Some(welcome.broadcast_seq);

@@ -265,3 +265,39 @@ fn the_base_station_learns_robot_sessions_and_counts_per_robot() {
     // Robot 1 telemetry addressed to the base is not for robot 2.
     assert_eq!(deliver(&mut r2, &w1, 102), vec![Ok(Event::Ignored)]);
 }
+
+#[test]
+fn a_slow_link_may_answer_an_earlier_challenge() {
+    // Round trip longer than the challenge period: the answer to the first Hello arrives
+    // after the second went out, and still links; a stale one does not.
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    let mut buf = [0u8; MAX_WIRE];
+    let n = r.challenge(Address::Base, 0, &mut buf).unwrap();
+    let first = buf[..n].to_vec();
+    let _second = r.challenge(Address::Base, 300, &mut buf).unwrap();
+    let Ok(Event::Challenged { from, nonce }) = deliver(&mut b, &first, 200)[0] else {
+        panic!()
+    };
+    let n = b.answer(from, nonce, 200, &mut buf).unwrap();
+    let answer = buf[..n].to_vec();
+    assert_eq!(
+        deliver(&mut r, &answer, 400),
+        vec![Ok(Event::Linked {
+            peer: Address::Base
+        })]
+    );
+
+    let mut r = robot(1, 6);
+    let n = r.challenge(Address::Base, 0, &mut buf).unwrap();
+    let hello = buf[..n].to_vec();
+    let Ok(Event::Challenged { from, nonce }) = deliver(&mut b, &hello, 100)[0] else {
+        panic!()
+    };
+    let n = b.answer(from, nonce, 100, &mut buf).unwrap();
+    assert_eq!(
+        deliver(&mut r, &buf[..n], 5000),
+        vec![Err(Reject::Replay)],
+        "a 5 s old challenge"
+    );
+}
