@@ -8,6 +8,7 @@
 //! - [`metrics`], [`plot`], [`run`]: what a run measured, its figure and its report.
 
 pub mod brain;
+pub mod faults;
 pub mod metrics;
 pub mod plant;
 pub mod plot;

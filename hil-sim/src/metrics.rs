@@ -202,6 +202,15 @@ pub struct LinkReport {
     pub rejects_by_reason: std::collections::BTreeMap<String, u64>,
 }
 
+/// Something the base station noticed, for the report.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct StationEventReport {
+    pub at_s: f64,
+    pub event: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robot: Option<u16>,
+}
+
 /// The run's report: a public interface (`schema_version` 1, keys fixed by the issue).
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Report {
@@ -220,6 +229,8 @@ pub struct Report {
     pub robots: Vec<RobotReport>,
     pub transformations: Vec<TransformationReport>,
     pub link: LinkReport,
+    /// What the base station noticed (links, formation changes, a lost leader, …).
+    pub station_events: Vec<StationEventReport>,
 }
 
 /// Follower errors of a sample (all followers), if every one is known.
@@ -347,5 +358,6 @@ pub fn build_report(
         robots,
         transformations,
         link,
+        station_events: Vec::new(),
     }
 }

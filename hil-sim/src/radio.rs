@@ -8,7 +8,7 @@
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 
-use rand::Rng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// A node on the radio: 0 is the base station, then the robots.
@@ -37,7 +37,10 @@ type InFlight = Reverse<(u64, u64, NodeId, Vec<u8>)>;
 
 pub struct Radio {
     params: RadioParams,
-    rng: ChaCha8Rng,
+    /// One random stream per transmitter: what one node sends (an attacker's flood)
+    /// does not change the loss and jitter of everyone else's frames.
+    seed: u64,
+    rngs: HashMap<NodeId, ChaCha8Rng>,
     queue: BinaryHeap<InFlight>,
     seq: u64,
     air_free_us: HashMap<NodeId, u64>,
@@ -46,10 +49,11 @@ pub struct Radio {
 }
 
 impl Radio {
-    pub fn new(params: RadioParams, rng: ChaCha8Rng) -> Self {
+    pub fn new(params: RadioParams, mut rng: ChaCha8Rng) -> Self {
         Self {
             params,
-            rng,
+            seed: rng.random(),
+            rngs: HashMap::new(),
             queue: BinaryHeap::new(),
             seq: 0,
             air_free_us: HashMap::new(),
@@ -76,6 +80,10 @@ impl Radio {
         mut route: impl FnMut(&[u8]) -> Vec<NodeId>,
     ) {
         let p = self.params;
+        let seed = self.seed;
+        let rng = self.rngs.entry(from).or_insert_with(|| {
+            ChaCha8Rng::seed_from_u64(seed ^ (from as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15))
+        });
         for frame in bytes.split_inclusive(|b| *b == 0) {
             let air_us = (frame.len() as f64 * 10.0 / p.baud as f64 * 1e6) as u64;
             let start = now_us.max(*self.air_free_us.get(&from).unwrap_or(&0));
@@ -86,21 +94,21 @@ impl Radio {
                     continue;
                 }
                 self.stats.frames_sent += 1;
-                if self.rng.random::<f64>() < p.loss {
+                if rng.random::<f64>() < p.loss {
                     self.stats.frames_lost += 1;
                     continue;
                 }
                 let mut copy = frame.to_vec();
                 if p.byte_corruption > 0.0 {
                     for b in copy.iter_mut() {
-                        if self.rng.random::<f64>() < p.byte_corruption {
-                            *b ^= 1 << self.rng.random_range(0..8);
+                        if rng.random::<f64>() < p.byte_corruption {
+                            *b ^= 1 << rng.random_range(0..8);
                             self.stats.bytes_corrupted += 1;
                         }
                     }
                 }
                 let jitter = if p.jitter_s > 0.0 {
-                    self.rng.random_range(-p.jitter_s..=p.jitter_s)
+                    rng.random_range(-p.jitter_s..=p.jitter_s)
                 } else {
                     0.0
                 };
@@ -133,7 +141,6 @@ impl Radio {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
 
     #[test]
     fn latency_airtime_and_order() {

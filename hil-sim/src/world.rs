@@ -23,6 +23,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 use crate::brain::{Brain, BrainError, NativeBrain};
+use crate::faults::{Action, DeadBrain, Injector};
 use crate::metrics::Recorder;
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
@@ -128,6 +129,7 @@ pub struct SimRobot {
     fixes: VecDeque<(u64, PoseFixSample)>,
     /// Radio bytes that arrived since this robot's last step.
     inbox: Vec<u8>,
+    pub boot_count: u32,
 }
 
 pub struct World {
@@ -142,6 +144,10 @@ pub struct World {
     pub options: SimOptions,
     pub t_us: u64,
     goal_at_us: Option<u64>,
+    injector: Injector,
+    radio_params: RadioParams,
+    robot_cfg: RobotConfig,
+    elf: std::path::PathBuf,
 }
 
 const PERIOD_US: u64 = 100_000;
@@ -249,12 +255,19 @@ impl World {
                     duty: MotorOutput::default(),
                     fixes: VecDeque::new(),
                     inbox: Vec::new(),
+                    boot_count: 1,
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
         let map = scenario.build_map();
         let recorder = Recorder::new(&scenario);
+        let radio_params = *radio.params();
+        let injector = Injector::new(scenario.faults.clone(), options.seed);
         Ok(Self {
+            injector,
+            radio_params,
+            robot_cfg: cfg,
+            elf,
             loc_rng: ChaCha8Rng::seed_from_u64(master.random()),
             map,
             station,
@@ -290,10 +303,83 @@ impl World {
         if bytes.is_empty() {
             return;
         }
+        let t_s = self.t_us as f64 / 1e6;
+        if from == 0 {
+            self.injector.overheard(self.t_us, bytes);
+        }
+        let silenced = self.injector.silenced(from, t_s);
+        let params = *self.radio.params();
+        if silenced {
+            self.radio.set_params(RadioParams {
+                loss: 1.0,
+                ..params
+            });
+        }
         let node_of = &self.node_of;
         let n = self.robots.len();
         self.radio
             .transmit(from, bytes, self.t_us, |f| Self::route(node_of, n, f));
+        self.radio.set_params(params);
+    }
+
+    /// Applies the faults due at the current time.
+    fn inject(&mut self, step_us: u64) -> Result<(), BrainError> {
+        let t_s = self.t_us as f64 / 1e6;
+        let params = self.injector.radio(self.radio_params, t_s);
+        self.radio.set_params(params);
+        for action in self.injector.due(t_s) {
+            match action {
+                Action::Reboot(id) => self.reboot(id)?,
+                Action::KillLeader => {
+                    if let Some(r) = self.robots.iter_mut().find(|r| r.role == Role::Leader) {
+                        tracing::info!("fault: the leader's controller dies");
+                        r.brain = Box::new(DeadBrain);
+                    }
+                }
+            }
+        }
+        let attack = self.injector.attack(self.t_us, step_us as f64 / 1e6);
+        if !attack.is_empty() {
+            let attacker = self.robots.len() + 1;
+            self.transmit(attacker, &attack);
+        }
+        Ok(())
+    }
+
+    /// Robot `id` reboots: a fresh brain with the next boot count; the body rolls on.
+    fn reboot(&mut self, id: u16) -> Result<(), BrainError> {
+        let Some(r) = self.robots.iter_mut().find(|r| r.id == id) else {
+            return Ok(());
+        };
+        r.boot_count += 1;
+        tracing::info!(robot = id, boot = r.boot_count, "fault: reboot");
+        let leader = r.role == Role::Leader;
+        r.brain = match self.options.firmware {
+            Firmware::Native => Box::new(NativeBrain::new(
+                Identity {
+                    id,
+                    role: if leader {
+                        config::Role::Leader
+                    } else {
+                        config::Role::Follower
+                    },
+                    boot_count: r.boot_count,
+                },
+                sim_key(self.options.seed),
+                self.robot_cfg,
+            )),
+            Firmware::Qemu => Box::new(crate::qemu::QemuBrain::spawn(
+                &self.elf,
+                id,
+                leader,
+                r.boot_count,
+                sim_key_bytes(self.options.seed),
+                self.options.step_timeout,
+            )?),
+        };
+        r.duty = MotorOutput::default();
+        r.inbox.clear();
+        Ok(())
     }
 
     /// Runs to the goal (plus settling) or the scenario's duration.
@@ -318,6 +404,7 @@ impl World {
 
     /// One physics step of `step_us`.
     pub fn step(&mut self, step_us: u64) -> Result<(), BrainError> {
+        self.inject(step_us)?;
         let t = self.t_us;
         let now_ms = (t / 1000) as u32;
 

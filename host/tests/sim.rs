@@ -59,3 +59,36 @@ fn basestation_sim_writes_report_and_figure() {
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("tracking error"));
 }
+
+#[test]
+fn sim_takes_faults_on_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("e2e-fault-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let report = dir.join("r.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .args(["sim", "paper-passage", "--plot", "/dev/null", "--fault"])
+        .arg(r#"{ at_s = 30, kind = "leader_dies" }"#)
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["goal_reached"], false);
+    assert!(r["station_events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|e| e["event"] == "leader_lost"));
+    let bad = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .args(["sim", "--fault", r#"{ at_s = 1, kind = "melt" }"#])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown variant `melt`"));
+}

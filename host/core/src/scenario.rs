@@ -67,6 +67,54 @@ pub struct Scenario {
     pub localization: LocalizationSpec,
     #[serde(default)]
     pub sim: SimSpec,
+    /// Faults and attacks the simulator injects (simulation only).
+    #[serde(default)]
+    pub faults: Vec<FaultSpec>,
+}
+
+/// What goes wrong. Append-only.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultKind {
+    /// Every frame lost, both ways, for `duration_s` (absent: for good).
+    LossBurst,
+    /// Frames from the base station to the robots lost.
+    SilentDownlink,
+    /// Frames from the robots to the base station lost.
+    SilentUplink,
+    /// One-way latency raised to `value` ms.
+    LatencySpike,
+    /// `robot` reboots: a new boot count, all its state lost.
+    Reboot,
+    /// The leader's controller dies: no more frames, motors off.
+    LeaderDies,
+    /// A transmitter with another key sends leader states, `value` frames/s.
+    WrongKeyAttacker,
+    /// Genuine frames recorded off the air are replayed `value` seconds later.
+    ReplayAttacker,
+    /// Random bytes on the air, `value` bytes/s.
+    GarbageFlood,
+}
+
+/// One scheduled fault. Fields beyond `at_s` and `kind` depend on the kind.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FaultSpec {
+    pub at_s: f64,
+    pub kind: FaultKind,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duration_s: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<u16>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value: Option<f64>,
+}
+
+impl FaultSpec {
+    /// Whether the fault is active at `t` seconds.
+    pub fn active(&self, t: f64) -> bool {
+        t >= self.at_s && self.duration_s.is_none_or(|d| t < self.at_s + d)
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
@@ -782,6 +830,38 @@ impl Scenario {
         )?;
         positive("localization.rate_hz", z.rate_hz)?;
         positive("sim.duration_s", self.sim.duration_s)?;
+        for (i, f) in self.faults.iter().enumerate() {
+            let at = |name: &str| format!("faults[{i}].{name}");
+            finite(&at("at_s"), &[f.at_s])?;
+            if f.at_s < 0.0 {
+                return fail(&at("at_s"), "must be ≥ 0");
+            }
+            if let Some(d) = f.duration_s {
+                positive(&at("duration_s"), d)?;
+            }
+            let needs_robot = f.kind == FaultKind::Reboot;
+            match (needs_robot, f.robot) {
+                (true, None) => return fail(&format!("faults[{i}]"), "this fault needs `robot`"),
+                (true, Some(id)) if !self.robots.iter().any(|r| r.id == id) => {
+                    return fail(&at("robot"), &format!("no robot with id {id}"))
+                }
+                (false, Some(_)) => return fail(&at("robot"), "this fault does not take `robot`"),
+                _ => {}
+            }
+            let needs_value = matches!(
+                f.kind,
+                FaultKind::LatencySpike
+                    | FaultKind::WrongKeyAttacker
+                    | FaultKind::ReplayAttacker
+                    | FaultKind::GarbageFlood
+            );
+            match (needs_value, f.value) {
+                (true, None) => return fail(&format!("faults[{i}]"), "this fault needs `value`"),
+                (true, Some(v)) => positive(&at("value"), v)?,
+                (false, Some(_)) => return fail(&at("value"), "this fault does not take `value`"),
+                _ => {}
+            }
+        }
         if self.sim.physics_step_ms == 0 || 100 % self.sim.physics_step_ms != 0 {
             return fail(
                 "sim.physics_step_ms",

@@ -38,10 +38,31 @@ pub struct SimArgs {
     /// Run no faster than the wall clock.
     #[arg(long)]
     pub realtime: bool,
+    /// Inject a fault, as a TOML inline table with the fields of `[[faults]]`, e.g.
+    /// `--fault '{ at_s = 30, kind = "loss_burst", duration_s = 10 }'`. Repeatable.
+    #[arg(long = "fault", value_name = "TABLE")]
+    pub faults: Vec<String>,
+}
+
+fn parse_fault(text: &str) -> anyhow::Result<base_station::scenario::FaultSpec> {
+    #[derive(serde::Deserialize)]
+    struct Wrapper {
+        fault: base_station::scenario::FaultSpec,
+    }
+    let doc = format!("fault = {text}");
+    let w: Wrapper =
+        toml::from_str(&doc).map_err(|e| anyhow::anyhow!("--fault {text}: {}", e.message()))?;
+    Ok(w.fault)
 }
 
 pub fn run(args: SimArgs) -> anyhow::Result<()> {
-    let scenario = super::load_scenario(&args.scenario)?;
+    let mut scenario = super::load_scenario(&args.scenario)?;
+    for text in &args.faults {
+        scenario.faults.push(parse_fault(text)?);
+    }
+    if let Err((field, message)) = scenario.validate() {
+        anyhow::bail!("--fault: field `{field}`: {message}");
+    }
     let firmware = match args.firmware {
         FirmwareArg::Native => Firmware::Native,
         FirmwareArg::Qemu => Firmware::Qemu,

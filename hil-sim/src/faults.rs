@@ -1,0 +1,188 @@
+//! Fault and attack injection: the scenario's `[[faults]]`, applied by the world as the
+//! simulated time reaches them. Radio faults change the radio; robot faults change a body
+//! or a brain; attackers are an extra transmitter on the same radio.
+
+use std::collections::VecDeque;
+
+use base_station::scenario::{FaultKind, FaultSpec};
+use control_core::controller::{MotorOutput, Sensors};
+use protocol::link::{Link, Timing};
+use protocol::messages::{LeaderState, Message, RobotMode, WirePose};
+use protocol::{Address, FleetKey, MAX_WIRE};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::brain::{Brain, BrainError, BrainRejects};
+use crate::radio::RadioParams;
+
+/// A controller that died: no frames, motors off.
+pub struct DeadBrain;
+
+impl Brain for DeadBrain {
+    fn step_start(&mut self, _: u64, _: &[u8], _: Option<&Sensors>) -> Result<(), BrainError> {
+        Ok(())
+    }
+    fn step_finish(&mut self, _: &mut Vec<u8>) -> Result<Option<MotorOutput>, BrainError> {
+        Ok(Some(MotorOutput::default()))
+    }
+    fn mode(&self) -> RobotMode {
+        RobotMode::Idle
+    }
+    fn rejects(&self) -> BrainRejects {
+        BrainRejects::default()
+    }
+}
+
+/// What the world must do for a one-shot fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Action {
+    Reboot(u16),
+    KillLeader,
+}
+
+pub struct Injector {
+    faults: Vec<FaultSpec>,
+    fired: Vec<bool>,
+    rng: ChaCha8Rng,
+    rogue: Link<1>,
+    recorded: VecDeque<(u64, Vec<u8>)>,
+    owed_garbage: f64,
+    owed_forgeries: f64,
+}
+
+impl Injector {
+    pub fn new(faults: Vec<FaultSpec>, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xa77a_c4e5);
+        let mut wrong = [0u8; 32];
+        rng.fill(&mut wrong);
+        // The rogue pretends to be the base station, with a key of its own.
+        let rogue = Link::new(
+            Address::Base,
+            FleetKey::from_bytes(&wrong),
+            rng.random(),
+            rng.random(),
+            Timing::default(),
+        );
+        Self {
+            fired: vec![false; faults.len()],
+            faults,
+            rng,
+            rogue,
+            recorded: VecDeque::new(),
+            owed_garbage: 0.0,
+            owed_forgeries: 0.0,
+        }
+    }
+
+    fn active(&self, kind: FaultKind, t_s: f64) -> Option<&FaultSpec> {
+        self.faults.iter().find(|f| f.kind == kind && f.active(t_s))
+    }
+
+    /// The radio's parameters at `t_s`, from the scenario's own.
+    pub fn radio(&self, base: RadioParams, t_s: f64) -> RadioParams {
+        let mut p = base;
+        if self.active(FaultKind::LossBurst, t_s).is_some() {
+            p.loss = 1.0;
+        }
+        if let Some(f) = self.active(FaultKind::LatencySpike, t_s) {
+            p.latency_s = f.value.unwrap_or(0.0) / 1000.0;
+        }
+        p
+    }
+
+    /// Whether frames from `from` (0: the base station) are lost at `t_s`.
+    pub fn silenced(&self, from: usize, t_s: f64) -> bool {
+        let kind = if from == 0 {
+            FaultKind::SilentDownlink
+        } else {
+            FaultKind::SilentUplink
+        };
+        self.active(kind, t_s).is_some()
+    }
+
+    /// One-shot faults due by `t_s`.
+    pub fn due(&mut self, t_s: f64) -> Vec<Action> {
+        let mut out = Vec::new();
+        for (f, fired) in self.faults.iter().zip(self.fired.iter_mut()) {
+            if *fired || t_s < f.at_s {
+                continue;
+            }
+            match f.kind {
+                FaultKind::Reboot => {
+                    *fired = true;
+                    out.push(Action::Reboot(f.robot.unwrap_or(0)));
+                }
+                FaultKind::LeaderDies => {
+                    *fired = true;
+                    out.push(Action::KillLeader);
+                }
+                _ => {}
+            }
+        }
+        out
+    }
+
+    /// Records what the base station sent, for the replay attacker.
+    pub fn overheard(&mut self, t_us: u64, bytes: &[u8]) {
+        if self
+            .faults
+            .iter()
+            .any(|f| f.kind == FaultKind::ReplayAttacker)
+        {
+            for frame in bytes.split_inclusive(|b| *b == 0) {
+                self.recorded.push_back((t_us, frame.to_vec()));
+            }
+        }
+    }
+
+    /// The attacker's transmissions during one step of `step_s` ending at `t_us`.
+    pub fn attack(&mut self, t_us: u64, step_s: f64) -> Vec<u8> {
+        let t_s = t_us as f64 / 1e6;
+        let mut out = Vec::new();
+        if let Some(f) = self.active(FaultKind::GarbageFlood, t_s) {
+            self.owed_garbage += f.value.unwrap_or(0.0) * step_s;
+            while self.owed_garbage >= 1.0 {
+                out.push(self.rng.random());
+                self.owed_garbage -= 1.0;
+            }
+            out.push(0);
+        }
+        if let Some(f) = self.active(FaultKind::WrongKeyAttacker, t_s) {
+            self.owed_forgeries += f.value.unwrap_or(0.0) * step_s;
+            while self.owed_forgeries >= 1.0 {
+                self.owed_forgeries -= 1.0;
+                // "Stop where you are, the leader is 5 m to your left": a forged state.
+                let forged = Message::LeaderState(LeaderState {
+                    pose: WirePose::from_si(
+                        self.rng.random_range(-20.0..40.0),
+                        self.rng.random_range(-20.0..40.0),
+                        0.0,
+                    )
+                    .unwrap_or_default(),
+                    v_mm_s: 1000,
+                    omega_mrad_s: 1000,
+                    blend: 0,
+                });
+                let mut buf = [0u8; MAX_WIRE];
+                if let Ok(n) =
+                    self.rogue
+                        .send(Address::Broadcast, (t_us / 1000) as u32, &forged, &mut buf)
+                {
+                    out.extend_from_slice(&buf[..n]);
+                }
+            }
+        }
+        if let Some(f) = self.active(FaultKind::ReplayAttacker, t_s) {
+            let delay_us = (f.value.unwrap_or(0.0) * 1e6) as u64;
+            while self
+                .recorded
+                .front()
+                .is_some_and(|(at, _)| at + delay_us <= t_us)
+            {
+                let (_, frame) = self.recorded.pop_front().expect("peeked");
+                out.extend_from_slice(&frame);
+            }
+        }
+        out
+    }
+}
