@@ -38,6 +38,7 @@ impl Brain for DeadBrain {
 pub enum Action {
     Reboot(u16),
     KillLeader,
+    RestartBase,
 }
 
 pub struct Injector {
@@ -90,6 +91,34 @@ impl Injector {
         p
     }
 
+    /// The body faults of robot `id` at `t_s`.
+    pub fn body(&self, id: u16, t_s: f64) -> crate::plant::BodyFaults {
+        let on = |kind| {
+            self.faults
+                .iter()
+                .find(|f| f.kind == kind && f.robot == Some(id) && f.active(t_s))
+        };
+        crate::plant::BodyFaults {
+            stuck: [on(FaultKind::StuckWheel).is_some(), false],
+            torque: [
+                on(FaultKind::WeakMotor)
+                    .and_then(|f| f.value)
+                    .unwrap_or(1.0),
+                1.0,
+            ],
+            encoder_dead: [on(FaultKind::EncoderDead).is_some(), false],
+        }
+    }
+
+    /// How far robot `id`'s pose fixes are off in x at `t_s`, m.
+    pub fn fix_offset(&self, id: u16, t_s: f64) -> f64 {
+        self.faults
+            .iter()
+            .filter(|f| f.kind == FaultKind::PoseJump && f.robot == Some(id) && f.active(t_s))
+            .filter_map(|f| f.value)
+            .sum()
+    }
+
     /// Whether frames from `from` (0: the base station) are lost at `t_s`.
     pub fn silenced(&self, from: usize, t_s: f64) -> bool {
         let kind = if from == 0 {
@@ -115,6 +144,10 @@ impl Injector {
                 FaultKind::LeaderDies => {
                     *fired = true;
                     out.push(Action::KillLeader);
+                }
+                FaultKind::BaseRestart => {
+                    *fired = true;
+                    out.push(Action::RestartBase);
                 }
                 _ => {}
             }

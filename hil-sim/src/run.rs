@@ -58,6 +58,7 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
     );
     let mut report = report;
     let leader = world.station.config().leader;
+    let epoch = world.base_epoch_s();
     report.station_events = world
         .station
         .events()
@@ -74,9 +75,22 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
                 E::Escape { at_ms } => (*at_ms, "local_minimum_escape".to_string(), None),
                 E::Arrived { at_ms } => (*at_ms, "goal_reached".to_string(), None),
                 E::FleetReady { at_ms } => (*at_ms, "fleet_ready".to_string(), None),
+                E::RobotFault {
+                    robot,
+                    fault,
+                    at_ms,
+                    halts,
+                } => (
+                    *at_ms,
+                    format!(
+                        "robot_fault:{fault}{}",
+                        if *halts { ":fleet_halted" } else { "" }
+                    ),
+                    Some(*robot),
+                ),
             };
             metrics::StationEventReport {
-                at_s: at_ms as f64 / 1000.0,
+                at_s: epoch + at_ms as f64 / 1000.0,
                 event,
                 robot,
             }

@@ -146,6 +146,8 @@ pub struct World {
     goal_at_us: Option<u64>,
     injector: Injector,
     radio_params: RadioParams,
+    /// When the current base station started (a restart begins a new clock).
+    base_epoch_us: u64,
     robot_cfg: RobotConfig,
     elf: std::path::PathBuf,
 }
@@ -266,6 +268,7 @@ impl World {
         Ok(Self {
             injector,
             radio_params,
+            base_epoch_us: 0,
             robot_cfg: cfg,
             elf,
             loc_rng: ChaCha8Rng::seed_from_u64(master.random()),
@@ -327,9 +330,24 @@ impl World {
         let t_s = self.t_us as f64 / 1e6;
         let params = self.injector.radio(self.radio_params, t_s);
         self.radio.set_params(params);
+        for r in &mut self.robots {
+            r.body.faults = self.injector.body(r.id, t_s);
+        }
         for action in self.injector.due(t_s) {
             match action {
                 Action::Reboot(id) => self.reboot(id)?,
+                Action::RestartBase => {
+                    tracing::info!("fault: the base station restarts");
+                    let mut rng = ChaCha8Rng::seed_from_u64(self.options.seed ^ self.t_us);
+                    self.station = BaseStation::new(
+                        StationConfig::from_scenario(&self.scenario),
+                        sim_key(self.options.seed),
+                        rng.random(),
+                        rng.random(),
+                    );
+                    // Its clock starts again at 0 too.
+                    self.base_epoch_us = self.t_us;
+                }
                 Action::KillLeader => {
                     if let Some(r) = self.robots.iter_mut().find(|r| r.role == Role::Leader) {
                         tracing::info!("fault: the leader's controller dies");
@@ -407,12 +425,14 @@ impl World {
         self.inject(step_us)?;
         let t = self.t_us;
         let now_ms = (t / 1000) as u32;
+        // The base station's own clock: since it (re)started.
+        let base_ms = ((t - self.base_epoch_us) / 1000) as u32;
 
         // Radio arrivals: the base station takes its bytes at once; each robot gets its
         // own at its next step (this one, if it is booted).
         for (to, bytes) in self.radio.arrivals(t) {
             if to == 0 {
-                self.station.receive(&bytes, now_ms);
+                self.station.receive(&bytes, base_ms);
             } else {
                 self.robots[to - 1].inbox.extend_from_slice(&bytes);
             }
@@ -426,10 +446,12 @@ impl World {
             let head =
                 Normal::new(0.0, loc.heading_sigma_deg.to_radians().max(1e-12)).expect("σ ≥ 0");
             let arrive = t + (loc.latency_ms * 1000.0) as u64;
+            let t_s = t as f64 / 1e6;
             for r in &mut self.robots {
+                let jump = self.injector.fix_offset(r.id, t_s);
                 let sample = PoseFixSample {
                     pose: Pose::new(
-                        (r.body.x + pos.sample(&mut self.loc_rng)) as f32,
+                        (r.body.x + jump + pos.sample(&mut self.loc_rng)) as f32,
                         (r.body.y + pos.sample(&mut self.loc_rng)) as f32,
                         (r.body.heading + head.sample(&mut self.loc_rng)) as f32,
                     ),
@@ -442,7 +464,7 @@ impl World {
 
         // Base station at 10 Hz.
         if t.is_multiple_of(PERIOD_US) {
-            self.station.step(now_ms);
+            self.station.step(base_ms);
             let out = self.station.take_outbox();
             self.transmit(0, &out);
         }
@@ -549,6 +571,11 @@ impl World {
             sense(body.heading),
             sense(body.heading + std::f64::consts::PI),
         ]
+    }
+
+    /// When the current base station started, s of simulated time.
+    pub fn base_epoch_s(&self) -> f64 {
+        self.base_epoch_us as f64 / 1e6
     }
 
     pub fn goal_time_s(&self) -> Option<f64> {

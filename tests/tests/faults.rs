@@ -212,3 +212,90 @@ fn a_rogue_transmitter_is_rejected_counted_and_changes_nothing() {
     println!("time to goal: {a:.1} s clean, {b:.1} s attacked");
     assert!((a - b).abs() < 2.0);
 }
+
+fn fault_event<'a>(r: &'a Report, name: &str) -> Option<&'a hil_sim::metrics::StationEventReport> {
+    r.station_events.iter().find(|e| e.event.starts_with(name))
+}
+
+#[test]
+fn a_stuck_wheel_or_a_dead_encoder_is_reported_and_the_fleet_stops() {
+    for kind in [FaultKind::StuckWheel, FaultKind::EncoderDead] {
+        let s = with(
+            shipped("paper-passage"),
+            &[(30.0, kind, None, Some(1), None)],
+        );
+        let (r, world) = run(s, 1);
+        assert_safe(&r);
+        assert!(!r.goal_reached, "{kind:?}: the mission halts");
+        let e = fault_event(&r, "robot_fault:wheel_stall_left")
+            .unwrap_or_else(|| panic!("{kind:?}: {:?}", r.station_events));
+        println!(
+            "{kind:?} on robot 1 at 30.0 s: reported {} at {:.1} s",
+            e.event, e.at_s
+        );
+        assert_eq!(e.robot, Some(1));
+        assert!(
+            e.at_s > 30.0 && e.at_s < 32.5,
+            "detected after {:.1} s",
+            e.at_s - 30.0
+        );
+        assert!(e.event.ends_with("fleet_halted"));
+        let travel = travel_while_cut_off(&world, e.at_s, r.sim_time_s);
+        assert!(
+            travel <= RobotConfig::DEFAULT.stop_distance_bound() as f64,
+            "{travel}"
+        );
+    }
+}
+
+#[test]
+fn a_half_torque_motor_is_absorbed() {
+    let s = with(
+        shipped("paper-passage"),
+        &[(20.0, FaultKind::WeakMotor, None, Some(2), Some(0.5))],
+    );
+    let (r, _) = run(s, 1);
+    assert_safe(&r);
+    assert!(r.goal_reached);
+    println!(
+        "half torque on robot 2: max tracking error {:?}",
+        r.robots[2].max_tracking_error_m
+    );
+}
+
+#[test]
+fn a_pose_fix_that_jumps_a_metre_is_rejected() {
+    let s = with(
+        shipped("paper-passage"),
+        &[(25.0, FaultKind::PoseJump, Some(3.0), Some(1), Some(1.0))],
+    );
+    let (r, _) = run(s, 1);
+    assert_safe(&r);
+    assert!(r.goal_reached);
+    let e = fault_event(&r, "robot_fault:pose_fix_rejected").expect("reported");
+    assert_eq!(e.robot, Some(1));
+    assert!(
+        r.robots[1].max_tracking_error_m.unwrap() < 0.35,
+        "{:?}",
+        r.robots[1]
+    );
+}
+
+#[test]
+fn a_restarted_base_station_is_accepted_again() {
+    let s = with(
+        shipped("paper-passage"),
+        &[(30.0, FaultKind::BaseRestart, None, None, None)],
+    );
+    let (r, _) = run(s, 1);
+    println!("{:?}", r.station_events);
+    assert_safe(&r);
+    assert!(r.goal_reached, "the new base station finished the mission");
+    // The new base station linked every robot again, without anyone's help.
+    for id in 0..3u16 {
+        assert!(r
+            .station_events
+            .iter()
+            .any(|e| e.event == "linked" && e.robot == Some(id) && e.at_s >= 30.0));
+    }
+}

@@ -81,6 +81,8 @@ pub struct Controller {
     reference: Option<(f32, f32)>,
     input_faults: u16,
     faults: u16,
+    /// How long each wheel has been asked to turn without turning, ms.
+    stalled_ms: [u32; 2],
 }
 
 impl Controller {
@@ -104,6 +106,7 @@ impl Controller {
             reference: None,
             input_faults: 0,
             faults: 0,
+            stalled_ms: [0; 2],
         }
     }
 
@@ -241,6 +244,7 @@ impl Controller {
         if self.odometry.fix_is_stale(now_ms, &self.cfg) {
             faults |= faults::POSE_FIX_STALE;
         }
+        faults |= self.watch_wheels(&measured, dt);
         let (mode, target) = self.decide(now_ms, dt, &mut faults);
         let target = self.keep_distance(target, &sensors.proximity);
         if self.emergency {
@@ -398,6 +402,27 @@ impl Controller {
         }
     }
 
+    /// A wheel asked for at least 0.1 m/s that turns at less than a fifth of it for a
+    /// second is stalled (blocked, or its encoder stopped counting): the flag goes into
+    /// telemetry, the base station halts the fleet.
+    fn watch_wheels(&mut self, measured: &WheelSpeeds, dt: f32) -> u16 {
+        let asked = [self.setpoints.left, self.setpoints.right];
+        let got = [measured.left, measured.right];
+        let mut flags = 0;
+        for i in 0..2 {
+            let stuck = math::abs(asked[i]) >= 0.1 && math::abs(got[i]) < 0.2 * math::abs(asked[i]);
+            self.stalled_ms[i] = if stuck {
+                self.stalled_ms[i].saturating_add((dt * 1000.0) as u32)
+            } else {
+                0
+            };
+            if self.stalled_ms[i] >= STALL_MS {
+                flags |= [faults::WHEEL_STALL_LEFT, faults::WHEEL_STALL_RIGHT][i];
+            }
+        }
+        flags
+    }
+
     /// The local safety layer: whatever the law or the base station asks, the robot does
     /// not drive into what its proximity sensors see. Speed toward an obstacle is capped
     /// at `proximity_gain · (free − proximity_stop)`, so it closes in exponentially and
@@ -430,6 +455,9 @@ impl Controller {
         }
     }
 }
+
+/// A wheel that does not follow its set-point this long is stalled, ms.
+const STALL_MS: u32 = 1000;
 
 fn is_driving(mode: RobotMode) -> bool {
     matches!(

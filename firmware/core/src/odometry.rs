@@ -4,8 +4,8 @@
 //! is compared with the odometry pose *at the fix's time* (a short history absorbs the
 //! fix's latency) and the difference is blended in with a fixed gain (a complementary
 //! filter), applied to the current pose and the history alike. A fix farther than the gate
-//! is an outlier and dropped; only a run of consistent outliers (the odometry really is
-//! off, e.g. after wheel slip) re-localizes.
+//! is an outlier and dropped; only 5 s of consistent outliers (the odometry really is
+//! off, or the localization re-anchored) re-localizes.
 //!
 //! When fixes stop, the robot goes on with odometry alone and raises `POSE_FIX_STALE`
 //! after [`Timeouts::pose_fix_ms`](crate::config::Timeouts): its error then grows with the
@@ -19,8 +19,10 @@ use crate::{math, Pose};
 
 /// Odometry poses kept to match late fixes: 1.6 s at 10 Hz.
 const HISTORY: usize = 16;
-/// Consecutive outliers that make the odometry give way to the fixes.
-const RELOCALIZE_AFTER: u8 = 10;
+/// Consecutive outliers that make the odometry give way to the fixes: 5 s at 10 Hz. A
+/// jump shorter than that is ignored (odometry drifts little in 5 s); a lasting one means
+/// the localization system re-anchored, and every robot must follow it.
+const RELOCALIZE_AFTER: u8 = 50;
 
 /// A pose fix, time already in this robot's clock.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -94,6 +94,16 @@ pub enum FaultKind {
     ReplayAttacker,
     /// Random bytes on the air, `value` bytes/s.
     GarbageFlood,
+    /// `robot`'s left wheel is blocked.
+    StuckWheel,
+    /// `robot`'s left motor delivers `value` (0–1) of its torque.
+    WeakMotor,
+    /// `robot`'s left encoder stops counting.
+    EncoderDead,
+    /// `robot`'s pose fixes are off by `value` metres (in x).
+    PoseJump,
+    /// The base station is killed and restarted (a new session, all its state lost).
+    BaseRestart,
 }
 
 /// One scheduled fault. Fields beyond `at_s` and `kind` depend on the kind.
@@ -839,7 +849,14 @@ impl Scenario {
             if let Some(d) = f.duration_s {
                 positive(&at("duration_s"), d)?;
             }
-            let needs_robot = f.kind == FaultKind::Reboot;
+            let needs_robot = matches!(
+                f.kind,
+                FaultKind::Reboot
+                    | FaultKind::StuckWheel
+                    | FaultKind::WeakMotor
+                    | FaultKind::EncoderDead
+                    | FaultKind::PoseJump
+            );
             match (needs_robot, f.robot) {
                 (true, None) => return fail(&format!("faults[{i}]"), "this fault needs `robot`"),
                 (true, Some(id)) if !self.robots.iter().any(|r| r.id == id) => {
@@ -854,6 +871,8 @@ impl Scenario {
                     | FaultKind::WrongKeyAttacker
                     | FaultKind::ReplayAttacker
                     | FaultKind::GarbageFlood
+                    | FaultKind::WeakMotor
+                    | FaultKind::PoseJump
             );
             match (needs_value, f.value) {
                 (true, None) => return fail(&format!("faults[{i}]"), "this fault needs `value`"),

@@ -8,8 +8,8 @@ use std::collections::BTreeMap;
 use glam::DVec2;
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{
-    FormationCommand, LeaderState, Message, RobotMode, Slot, Stop, Telemetry, VelocityCommand,
-    WirePose,
+    faults, FormationCommand, LeaderState, Message, RobotMode, Slot, Stop, Telemetry,
+    VelocityCommand, WirePose,
 };
 use protocol::{units, Address, FleetKey, FrameDecoder, Reject, RejectCounts, MAX_WIRE};
 
@@ -79,7 +79,21 @@ pub enum StationEvent {
     FleetReady {
         at_ms: u32,
     },
+    /// A robot reported a fault; `halts` when the fleet was stopped for it.
+    RobotFault {
+        robot: u16,
+        fault: &'static str,
+        at_ms: u32,
+        halts: bool,
+    },
 }
+
+/// Fault flags the station reports, with their names and whether they halt the fleet.
+const REPORTED_FAULTS: [(u16, &str, bool); 3] = [
+    (faults::WHEEL_STALL_LEFT, "wheel_stall_left", true),
+    (faults::WHEEL_STALL_RIGHT, "wheel_stall_right", true),
+    (faults::POSE_FIX_REJECTED, "pose_fix_rejected", false),
+];
 
 /// The leader as the station estimates it now.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -102,6 +116,8 @@ pub struct BaseStation {
     leader_seen: bool,
     leader_lost: bool,
     ready: bool,
+    /// A robot fault stopped the mission: Stop to all, no more commands.
+    halted: bool,
     escapes_seen: u32,
     last_command: (f64, f64),
 }
@@ -155,6 +171,7 @@ impl BaseStation {
             leader_seen: false,
             leader_lost: false,
             ready: false,
+            halted: false,
             escapes_seen: 0,
             last_command: (0.0, 0.0),
         }
@@ -216,6 +233,19 @@ impl BaseStation {
                             .and_then(|p| p.clock_offset_ms)
                             .unwrap_or(0);
                         if let Some(status) = self.robots.get_mut(&id) {
+                            let before = status.telemetry.map_or(0, |p| p.faults);
+                            for (bit, fault, halts) in REPORTED_FAULTS {
+                                if t.faults & bit != 0 && before & bit == 0 {
+                                    tracing::warn!(robot = id, fault, "robot fault");
+                                    self.events.push(StationEvent::RobotFault {
+                                        robot: id,
+                                        fault,
+                                        at_ms: now_ms,
+                                        halts,
+                                    });
+                                    self.halted |= halts;
+                                }
+                            }
                             status.telemetry = Some(t);
                             status.received_ms = now_ms;
                             // Robot clock → ours; never later than now.
@@ -312,6 +342,15 @@ impl BaseStation {
             self.last_slots_ms = Some(now_ms);
         }
 
+        if self.halted {
+            // A robot cannot drive as told: everyone brakes and holds.
+            self.send(
+                Address::Broadcast,
+                now_ms,
+                &Message::Stop(Stop { reason: 2 }),
+            );
+            return;
+        }
         let Some(leader) = self.leader_estimate(now_ms) else {
             if !self.leader_seen {
                 return;
