@@ -19,7 +19,10 @@ fuzz_target!(|data: &[u8]| {
     for (i, &b) in data.iter().enumerate() {
         if let Some(frame) = dec.push(b) {
             let r = link.receive(frame, i as u32);
-            assert!(!matches!(r, Ok(Event::Message { .. }) | Ok(Event::Linked { .. })));
+            assert!(!matches!(
+                r,
+                Ok(Event::Message { .. }) | Ok(Event::Linked { .. })
+            ));
         }
     }
 });

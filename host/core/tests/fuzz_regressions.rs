@@ -1,0 +1,22 @@
+//! Inputs that once crashed the `scenario_parser` fuzz target (fuzz/regressions/), replayed.
+
+#[test]
+fn crash_inputs_stay_fixed() {
+    let dir = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fuzz/regressions/scenario_parser"
+    );
+    for entry in std::fs::read_dir(dir).expect("the regressions folder is checked in") {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy();
+        if name.starts_with('.') || name.ends_with(".md") {
+            continue;
+        }
+        let data = std::fs::read(&path).unwrap();
+        if let Ok(text) = std::str::from_utf8(&data) {
+            if let Err(e) = base_station::scenario::Scenario::parse(text, "fuzz.toml") {
+                assert!(e.to_string().starts_with("fuzz.toml"));
+            }
+        }
+    }
+}
