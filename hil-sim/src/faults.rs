@@ -88,6 +88,15 @@ impl Injector {
         if let Some(f) = self.active(FaultKind::LatencySpike, t_s) {
             p.latency_s = f.value.unwrap_or(0.0) / 1000.0;
         }
+        if let Some(f) = self.active(FaultKind::Reorder, t_s) {
+            p.reorder_s = f.value.unwrap_or(0.0) / 1000.0;
+        }
+        if self.active(FaultKind::Duplicate, t_s).is_some() {
+            p.duplicate = true;
+        }
+        if let Some(f) = self.active(FaultKind::Corruption, t_s) {
+            p.byte_corruption = f.value.unwrap_or(0.0);
+        }
         p
     }
 

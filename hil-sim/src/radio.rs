@@ -21,6 +21,10 @@ pub struct RadioParams {
     pub loss: f64,
     pub byte_corruption: f64,
     pub baud: u32,
+    /// Extra random delay per frame that may overtake earlier ones (reordering), s.
+    pub reorder_s: f64,
+    /// Every frame delivered twice.
+    pub duplicate: bool,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -114,10 +118,17 @@ impl Radio {
                 };
                 let delay_us = ((p.latency_s + jitter).max(0.0) * 1e6) as u64;
                 let last = self.last_arrival.entry((from, to)).or_insert(0);
-                let at = (end + delay_us).max(*last);
+                let mut at = (end + delay_us).max(*last);
                 *last = at;
-                self.seq += 1;
-                self.queue.push(Reverse((at, self.seq, to, copy)));
+                if p.reorder_s > 0.0 {
+                    // Past the in-order arrival: later frames may overtake this one.
+                    at += (rng.random_range(0.0..p.reorder_s) * 1e6) as u64;
+                }
+                let copies = if p.duplicate { 2 } else { 1 };
+                for _ in 0..copies {
+                    self.seq += 1;
+                    self.queue.push(Reverse((at, self.seq, to, copy.clone())));
+                }
             }
         }
     }
@@ -150,6 +161,8 @@ mod tests {
             loss: 0.0,
             byte_corruption: 0.0,
             baud: 10_000,
+            reorder_s: 0.0,
+            duplicate: false,
         };
         let mut r = Radio::new(params, ChaCha8Rng::seed_from_u64(1));
         // Two 10-byte frames: 10 ms of air each at 10 kbaud.
@@ -171,6 +184,8 @@ mod tests {
             loss: 0.3,
             byte_corruption: 0.01,
             baud: 1_000_000,
+            reorder_s: 0.0,
+            duplicate: false,
         };
         let mut r = Radio::new(params, ChaCha8Rng::seed_from_u64(2));
         let frame = [[7u8; 39].as_slice(), &[0]].concat();

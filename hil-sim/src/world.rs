@@ -192,6 +192,8 @@ impl World {
                 loss: l.loss,
                 byte_corruption: l.byte_corruption,
                 baud: l.baud,
+                reorder_s: 0.0,
+                duplicate: false,
             },
             ChaCha8Rng::seed_from_u64(master.random()),
         );

@@ -299,3 +299,27 @@ fn a_restarted_base_station_is_accepted_again() {
             .any(|e| e.event == "linked" && e.robot == Some(id) && e.at_s >= 30.0));
     }
 }
+
+#[test]
+fn reordered_duplicated_and_corrupted_frames() {
+    let cases = [
+        (FaultKind::Reorder, Some(300.0), "replay"),
+        (FaultKind::Duplicate, None, "replay"),
+        (FaultKind::Corruption, Some(0.002), "bad_tag"),
+    ];
+    for (kind, value, reason) in cases {
+        let s = with(
+            shipped("paper-obstacles"),
+            &[(10.0, kind, Some(20.0), None, value)],
+        );
+        let (r, _) = run(s, 1);
+        assert_safe(&r);
+        assert!(r.goal_reached, "{kind:?}");
+        let counted = r.link.rejects_by_reason.get(reason).copied().unwrap_or(0);
+        println!(
+            "{kind:?} for 20 s: {counted} frames rejected as {reason}, {:?}",
+            r.link.rejects_by_reason
+        );
+        assert!(counted > 20, "{kind:?}: {:?}", r.link.rejects_by_reason);
+    }
+}

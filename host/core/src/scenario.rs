@@ -104,6 +104,12 @@ pub enum FaultKind {
     PoseJump,
     /// The base station is killed and restarted (a new session, all its state lost).
     BaseRestart,
+    /// Frames arrive out of order: up to `value` ms of extra random delay each.
+    Reorder,
+    /// Every frame arrives twice.
+    Duplicate,
+    /// Each byte on the air is flipped with probability `value`.
+    Corruption,
 }
 
 /// One scheduled fault. Fields beyond `at_s` and `kind` depend on the kind.
@@ -873,6 +879,8 @@ impl Scenario {
                     | FaultKind::GarbageFlood
                     | FaultKind::WeakMotor
                     | FaultKind::PoseJump
+                    | FaultKind::Reorder
+                    | FaultKind::Corruption
             );
             match (needs_value, f.value) {
                 (true, None) => return fail(&format!("faults[{i}]"), "this fault needs `value`"),
