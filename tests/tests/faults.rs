@@ -323,3 +323,36 @@ fn reordered_duplicated_and_corrupted_frames() {
         assert!(counted > 20, "{kind:?}: {:?}", r.link.rejects_by_reason);
     }
 }
+
+#[test]
+fn a_leader_that_stops_dead_halts_the_fleet() {
+    // Its wheel blocked: the leader stops though it is alive and still talking.
+    let s = with(
+        shipped("paper-passage"),
+        &[(30.0, FaultKind::StuckWheel, None, Some(0), None)],
+    );
+    let (r, world) = run(s, 1);
+    assert_safe(&r);
+    let e = fault_event(&r, "robot_fault:wheel_stall_left").expect("reported");
+    println!("leader stopped dead at 30.0 s: reported at {:.1} s", e.at_s);
+    assert_eq!(e.robot, Some(0));
+    let travel = travel_while_cut_off(&world, e.at_s, r.sim_time_s);
+    assert!(
+        travel <= RobotConfig::DEFAULT.stop_distance_bound() as f64,
+        "{travel}"
+    );
+}
+
+#[test]
+fn frames_a_minute_old_are_refused_too() {
+    let s = with(
+        shipped("paper-obstacles"),
+        &[(0.0, FaultKind::ReplayAttacker, None, None, Some(60.0))],
+    );
+    let (r, _) = run(s, 1);
+    assert_safe(&r);
+    assert!(r.goal_reached);
+    let replays = r.link.rejects_by_reason.get("replay").copied().unwrap_or(0);
+    println!("replays of 60 s old frames rejected: {replays}");
+    assert!(replays > 100);
+}
