@@ -5,6 +5,7 @@ use std::path::Path;
 
 use base_station::geometry::Obstacle;
 use base_station::scenario::Role;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::metrics::Report;
@@ -24,6 +25,37 @@ fn color(i: usize) -> RGBColor {
 }
 
 type PlotResult = Result<(), Box<dyn std::error::Error>>;
+
+/// Points around a circle, closed.
+fn circle(cx: f64, cy: f64, r: f64) -> Vec<(f64, f64)> {
+    (0..=36)
+        .map(|i| {
+            let a = i as f64 / 36.0 * std::f64::consts::TAU;
+            (cx + r * a.cos(), cy + r * a.sin())
+        })
+        .collect()
+}
+
+type TimeChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A chart over the run's time with the given caption and y range.
+fn time_chart<'a, DB: DrawingBackend>(
+    world: &World,
+    area: &'a DrawingArea<DB, plotters::coord::Shift>,
+    caption: &str,
+    y: std::ops::Range<f64>,
+) -> Result<TimeChart<'a, DB>, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    let t_end = world.recorder.samples.last().map_or(1.0, |s| s.t);
+    Ok(ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 15))
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..t_end, y)?)
+}
 
 pub fn write_svg(world: &World, report: &Report, path: &Path) -> PlotResult {
     let root = SVGBackend::new(path, (1500, 760)).into_drawing_area();
@@ -99,12 +131,7 @@ where
     for o in world.map.obstacles() {
         match o {
             Obstacle::Circle { center, radius } => {
-                let pts: Vec<(f64, f64)> = (0..=36)
-                    .map(|i| {
-                        let a = i as f64 / 36.0 * std::f64::consts::TAU;
-                        (center.x + radius * a.cos(), center.y + radius * a.sin())
-                    })
-                    .collect();
+                let pts = circle(center.x, center.y, *radius);
                 chart.draw_series(std::iter::once(Polygon::new(pts, grey.filled())))?;
             }
             Obstacle::Segment { a, b } => {
@@ -158,13 +185,7 @@ where
         }
         for (i, r) in s.robots.iter().enumerate() {
             let fp = world.robots[i].body.params.footprint;
-            let pts: Vec<(f64, f64)> = (0..=24)
-                .map(|k| {
-                    let a = k as f64 / 24.0 * std::f64::consts::TAU;
-                    (r.x + fp * a.cos(), r.y + fp * a.sin())
-                })
-                .collect();
-            chart.draw_series(LineSeries::new(pts, color(i).mix(0.8)))?;
+            chart.draw_series(LineSeries::new(circle(r.x, r.y, fp), color(i).mix(0.8)))?;
         }
     }
     chart
@@ -191,15 +212,12 @@ where
         .flat_map(|s| s.robots.iter().filter_map(|r| r.error))
         .fold(0.1f64, f64::max)
         .min(2.0);
-    let mut chart = ChartBuilder::on(area)
-        .caption(
-            "tracking error (control point to slot point)",
-            ("sans-serif", 15),
-        )
-        .margin(10)
-        .x_label_area_size(30)
-        .y_label_area_size(50)
-        .build_cartesian_2d(0.0..t_end, 0.0..e_max * 1.05)?;
+    let mut chart = time_chart(
+        world,
+        area,
+        "tracking error (control point to slot point)",
+        0.0..e_max * 1.05,
+    )?;
     chart
         .configure_mesh()
         .x_desc("t (s)")
@@ -250,13 +268,12 @@ where
     DB::ErrorType: 'static,
 {
     let rec = &world.recorder;
-    let t_end = rec.samples.last().map_or(1.0, |s| s.t);
-    let mut chart = ChartBuilder::on(area)
-        .caption("v (solid, m/s) and ω (dashed, rad/s)", ("sans-serif", 15))
-        .margin(10)
-        .x_label_area_size(30)
-        .y_label_area_size(50)
-        .build_cartesian_2d(0.0..t_end, -1.0..1.0)?;
+    let mut chart = time_chart(
+        world,
+        area,
+        "v (solid, m/s) and ω (dashed, rad/s)",
+        -1.0..1.0,
+    )?;
     chart.configure_mesh().x_desc("t (s)").draw()?;
     for (i, _) in world.robots.iter().enumerate() {
         chart.draw_series(LineSeries::new(
