@@ -377,8 +377,7 @@ impl Brain for QemuBrain {
             return Err(self.io_failure(e));
         }
         self.tx_read = done.radio_tx_bytes;
-        let sent = tx[start..].to_vec();
-        self.scan_tx(&sent);
+        self.scan_tx(&tx[start..]);
         if !done.duty.iter().all(|d| d.is_finite()) {
             return Err(self.failure("sent a non-finite motor duty"));
         }

@@ -118,6 +118,11 @@ pub fn seal(
 /// Reads the header of a COBS-decoded frame without checking its tag. For routing and
 /// diagnostics only: nothing in it is trusted until [`open`] verifies the tag.
 pub fn peek_header(raw: &[u8]) -> Result<Header, Reject> {
+    split(raw).map(|(header, _)| header)
+}
+
+/// The header and the payload bytes of a COBS-decoded frame (tag unchecked).
+fn split(raw: &[u8]) -> Result<(Header, &[u8]), Reject> {
     if raw.len() < 1 + 4 + TAG_LEN {
         return Err(Reject::Truncated);
     }
@@ -130,23 +135,23 @@ pub fn peek_header(raw: &[u8]) -> Result<Header, Reject> {
         return Err(Reject::UnknownMessage);
     }
     let body = &raw[1..raw.len() - TAG_LEN];
-    let (route, _) = postcard::take_from_bytes::<Route>(body).map_err(|_| Reject::Truncated)?;
-    Ok(Header {
+    let (route, payload) =
+        postcard::take_from_bytes::<Route>(body).map_err(|_| Reject::Truncated)?;
+    let header = Header {
         version,
         id,
         from: route.from,
         to: route.to,
         seq: route.seq,
         time_ms: route.time_ms,
-    })
+    };
+    Ok((header, payload))
 }
 
 /// Decodes a COBS-decoded frame **without** checking its tag: for capture analysis
 /// (`basestation decode` without the key). Never act on what it returns.
 pub fn parse_unverified(raw: &[u8]) -> Result<(Header, Message), Reject> {
-    let header = peek_header(raw)?;
-    let body = &raw[1..raw.len() - TAG_LEN];
-    let (_, payload) = postcard::take_from_bytes::<Route>(body).map_err(|_| Reject::Truncated)?;
+    let (header, payload) = split(raw)?;
     Ok((header, Message::decode(header.id, payload)?))
 }
 
@@ -157,7 +162,7 @@ pub fn open(
     raw: &[u8],
     session_of: impl FnOnce(&Header) -> Result<u32, Reject>,
 ) -> Result<(Header, Message), Reject> {
-    let header = peek_header(raw)?;
+    let (header, payload) = split(raw)?;
     let body = &raw[..raw.len() - TAG_LEN];
     let tag = &raw[raw.len() - TAG_LEN..];
     let session = if Message::is_handshake(header.id) {
@@ -169,9 +174,6 @@ pub fn open(
     if !key.verify(&schema_key, session, body, tag) {
         return Err(Reject::BadTag);
     }
-    // The route parses (peek_header), so this cannot fail; stay total anyway.
-    let (_, payload) =
-        postcard::take_from_bytes::<Route>(&body[1..]).map_err(|_| Reject::Truncated)?;
     let message = Message::decode(header.id, payload)?;
     Ok((header, message))
 }
