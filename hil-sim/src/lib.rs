@@ -5,7 +5,8 @@
 //! - [`radio`]: the byte pipe between nodes: latency, jitter, loss, corruption, baud;
 //! - [`brain`]: the control code a robot runs;
 //! - [`world`]: everything on one simulated clock;
-//! - [`metrics`], [`plot`], [`run`]: what a run measured, its figure and its report.
+//! - [`metrics`]: what a run measured; [`report`], [`plot`], [`trace`]: its report, figure
+//!   and CSV trace; [`run`]: one run, start to report.
 
 pub mod brain;
 pub mod faults;
@@ -14,5 +15,7 @@ pub mod plant;
 pub mod plot;
 pub mod qemu;
 pub mod radio;
+pub mod report;
 pub mod run;
+pub mod trace;
 pub mod world;

@@ -8,7 +8,7 @@ use base_station::scenario::Role;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::metrics::Report;
+use crate::report::Report;
 use crate::world::World;
 
 const COLORS: [RGBColor; 6] = [

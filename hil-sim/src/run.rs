@@ -7,7 +7,7 @@ use base_station::scenario::Scenario;
 use protocol::{Reject, RejectCounts};
 
 use crate::brain::BrainError;
-use crate::metrics::{self, LinkReport, Report};
+use crate::report::{self, LinkReport, Report, RunFacts, StationEventReport};
 use crate::world::{SimOptions, World};
 
 /// Runs a scenario; returns the report and the finished world (for the figure).
@@ -37,26 +37,23 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
         rejects_by_reason: by_reason(&rejects),
     };
     let s = &world.scenario;
-    let transformations = metrics::transformations(
+    let transformations = report::transformations(
         &world.recorder,
-        &world.station,
+        world.station.formation().transformations(),
         s.wide_name(),
         s.formation.transition_s,
     );
     let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
-    let report = metrics::build_report(
-        &world.recorder,
-        s,
-        &roles,
-        transformations,
+    let facts = RunFacts {
+        scenario: s,
+        roles: &roles,
         seed,
         firmware,
-        world.t_us as f64 / 1e6,
+        sim_time_s: world.t_us as f64 / 1e6,
         wall_time_s,
-        world.goal_time_s(),
-        link,
-    );
-    let mut report = report;
+        time_to_goal_s: world.goal_time_s(),
+    };
+    let mut report = report::build_report(&world.recorder, &facts, transformations, link);
     let leader = world.station.config().leader;
     let epoch = world.base_epoch_s();
     report.station_events = world
@@ -89,7 +86,7 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
                     Some(*robot),
                 ),
             };
-            metrics::StationEventReport {
+            StationEventReport {
                 at_s: epoch + at_ms as f64 / 1000.0,
                 event,
                 robot,

@@ -24,7 +24,7 @@ use rand_distr::{Distribution, Normal};
 
 use crate::brain::{Brain, BrainError, NativeBrain};
 use crate::faults::{Action, DeadBrain, Injector};
-use crate::metrics::Recorder;
+use crate::metrics::{Recorder, Tracked};
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
 
@@ -524,8 +524,17 @@ impl World {
         if self.goal_at_us.is_none() && self.station.planner().arrived() {
             self.goal_at_us = Some(self.t_us);
         }
+        let tracked: Vec<Tracked<'_>> = self
+            .robots
+            .iter()
+            .map(|r| Tracked {
+                id: r.id,
+                role: r.role,
+                body: &r.body,
+            })
+            .collect();
         self.recorder
-            .observe(self.t_us, &self.robots, &self.map, &self.station);
+            .observe(self.t_us, &tracked, &self.map, &self.station);
         Ok(())
     }
 

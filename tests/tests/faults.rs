@@ -9,7 +9,7 @@ mod common;
 use base_station::scenario::{FaultKind, FaultSpec, Scenario};
 use common::{run, shipped};
 use control_core::config::RobotConfig;
-use hil_sim::metrics::Report;
+use hil_sim::report::Report;
 use hil_sim::world::World;
 
 /// (at_s, kind, duration_s, robot, value)
@@ -213,7 +213,7 @@ fn a_rogue_transmitter_is_rejected_counted_and_changes_nothing() {
     assert!((a - b).abs() < 2.0);
 }
 
-fn fault_event<'a>(r: &'a Report, name: &str) -> Option<&'a hil_sim::metrics::StationEventReport> {
+fn fault_event<'a>(r: &'a Report, name: &str) -> Option<&'a hil_sim::report::StationEventReport> {
     r.station_events.iter().find(|e| e.event.starts_with(name))
 }
 

@@ -55,7 +55,7 @@ fn paper_passage_meets_the_bounds_and_changes_shape_around_the_gap() {
 
 #[test]
 fn the_same_seed_gives_the_same_report() {
-    let strip = |mut r: hil_sim::metrics::Report| {
+    let strip = |mut r: hil_sim::report::Report| {
         r.wall_time_s = 0.0;
         serde_json::to_string(&r).unwrap()
     };

@@ -53,11 +53,30 @@ pub enum Target {
     Line,
 }
 
+/// Why the shape changed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reason {
+    /// The way ahead is narrower than the wide formation.
+    PassageAhead,
+    /// The narrow stretch is behind the whole formation and the way ahead is wide.
+    PassageBehind,
+}
+
+impl Reason {
+    pub fn name(self) -> &'static str {
+        match self {
+            Reason::PassageAhead => "passage_ahead",
+            Reason::PassageBehind => "passage_behind",
+        }
+    }
+}
+
 /// A change of shape, for the record.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transformation {
     pub to: Target,
     pub start_s: f64,
+    pub reason: Reason,
 }
 
 impl FormationSpec {
@@ -262,7 +281,7 @@ impl FormationManager {
                 let narrow = self.narrow_ahead(map, leader, need_in);
                 if force_line || narrow.is_some() {
                     self.passage_end = narrow;
-                    self.switch(Target::Line, now_s);
+                    self.switch(Target::Line, now_s, Reason::PassageAhead);
                 }
             }
             Target::Line => {
@@ -291,7 +310,7 @@ impl FormationManager {
                     && slots.iter().all(past);
                 if dwelt && open {
                     self.passage_end = None;
-                    self.switch(Target::Wide, now_s);
+                    self.switch(Target::Wide, now_s, Reason::PassageBehind);
                 }
             }
         }
@@ -309,11 +328,15 @@ impl FormationManager {
         self.blend
     }
 
-    fn switch(&mut self, to: Target, now_s: f64) {
+    fn switch(&mut self, to: Target, now_s: f64, reason: Reason) {
         self.target = to;
         self.from_blend = self.blend;
         self.transition_start = Some(now_s);
         self.line_since = None;
-        self.events.push(Transformation { to, start_s: now_s });
+        self.events.push(Transformation {
+            to,
+            start_s: now_s,
+            reason,
+        });
     }
 }

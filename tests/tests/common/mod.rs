@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use base_station::scenario::Scenario;
-use hil_sim::metrics::Report;
+use hil_sim::report::Report;
 use hil_sim::run::simulate;
 use hil_sim::world::{SimOptions, World};
 

@@ -1,0 +1,278 @@
+//! The run's report: a public interface. `schema_version` 2 keeps every schema-1 key and
+//! adds per-follower join times, percentiles and transformation errors, and a reason per
+//! transformation. Every key is documented in `docs/sim.md`.
+
+use std::collections::BTreeMap;
+
+use base_station::formation::{Target, Transformation};
+use base_station::scenario::{Role, Scenario};
+use serde::Serialize;
+
+use crate::metrics::{Recorder, Sample};
+
+pub const SCHEMA_VERSION: u32 = 2;
+
+/// A follower has joined at its first sample under this error, m.
+pub const JOINED_BELOW_M: f64 = 0.1;
+
+/// A shape change as the report shows it.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct TransformationReport {
+    pub to: String,
+    pub start_s: f64,
+    /// From the start until the slots reached the new shape and every follower is back
+    /// under 0.1 m; null if that never happened.
+    pub duration_s: Option<f64>,
+    /// Why: `passage_ahead` (into the line), `passage_behind` (back to the wide shape).
+    pub reason: String,
+}
+
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct RobotReport {
+    pub id: u16,
+    pub role: String,
+    pub avg_speed_mps: f64,
+    pub avg_abs_omega_radps: f64,
+    /// Followers: max error from their own join to the end of the run (everything:
+    /// obstacles, transformations); over the whole run if they never joined.
+    pub max_tracking_error_m: Option<f64>,
+    /// Followers: max error after their join outside transformations and away from
+    /// obstacles (the paper's "stable phases").
+    pub stable_max_tracking_error_m: Option<f64>,
+    /// Followers: the first sample under 0.1 m; null if never.
+    pub joined_at_s: Option<f64>,
+    /// Followers: 95th percentile of the error after their join.
+    pub p95_tracking_error_m: Option<f64>,
+    /// Followers: share of the samples after their join with the error under 0.1 m.
+    pub time_within_0_1m_fraction: Option<f64>,
+    /// Followers: max error after their join while the formation changes shape (and 3 s
+    /// after); null without a transformation after the join.
+    pub max_tracking_error_transforming_m: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct LinkReport {
+    pub frames_sent: u64,
+    pub frames_delivered: u64,
+    pub frames_rejected: u64,
+    /// Rejected frames by reason, over every receiver.
+    pub rejects_by_reason: BTreeMap<String, u64>,
+}
+
+/// Something the base station noticed, for the report.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct StationEventReport {
+    pub at_s: f64,
+    pub event: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robot: Option<u16>,
+}
+
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Report {
+    pub schema_version: u32,
+    pub scenario: String,
+    pub seed: u64,
+    pub firmware: String,
+    pub sim_time_s: f64,
+    pub wall_time_s: f64,
+    pub goal_reached: bool,
+    pub time_to_goal_s: Option<f64>,
+    pub collisions: u32,
+    pub min_obstacle_clearance_m: f64,
+    pub min_robot_separation_m: f64,
+    /// The first sample with every follower under 0.1 m at once.
+    pub convergence_time_s: Option<f64>,
+    pub robots: Vec<RobotReport>,
+    pub transformations: Vec<TransformationReport>,
+    pub link: LinkReport,
+    /// What the base station noticed (links, formation changes, a lost leader, …).
+    pub station_events: Vec<StationEventReport>,
+}
+
+/// Follower errors of a sample (all followers), if every one is known.
+fn errors(s: &Sample) -> Vec<f64> {
+    s.robots.iter().filter_map(|r| r.error).collect()
+}
+
+/// The transformations, with their durations measured on the samples.
+pub fn transformations(
+    rec: &Recorder,
+    done: &[Transformation],
+    wide_name: &str,
+    transition_s: f64,
+) -> Vec<TransformationReport> {
+    done.iter()
+        .map(|tr| {
+            let shaped = tr.start_s + transition_s;
+            let back = rec
+                .samples
+                .iter()
+                .find(|s| s.t >= shaped - 1e-9 && errors(s).iter().all(|e| *e < JOINED_BELOW_M))
+                .map(|s| s.t - tr.start_s);
+            TransformationReport {
+                to: match tr.to {
+                    Target::Line => "line".to_string(),
+                    Target::Wide => wide_name.to_string(),
+                },
+                start_s: tr.start_s,
+                duration_s: back,
+                reason: tr.reason.name().to_string(),
+            }
+        })
+        .collect()
+}
+
+fn max(values: impl Iterator<Item = f64>) -> Option<f64> {
+    values.fold(None, |m, e| Some(m.map_or(e, |m: f64| m.max(e))))
+}
+
+/// The `q` quantile (nearest rank) of `values`.
+fn quantile(mut values: Vec<f64>, q: f64) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    let rank = ((q * values.len() as f64).ceil() as usize).clamp(1, values.len());
+    Some(values[rank - 1])
+}
+
+/// What the run measured, besides the link and the station's events.
+pub struct RunFacts<'a> {
+    pub scenario: &'a Scenario,
+    /// Each robot's id and role, in the samples' order.
+    pub roles: &'a [(u16, Role)],
+    pub seed: u64,
+    pub firmware: &'a str,
+    pub sim_time_s: f64,
+    pub wall_time_s: f64,
+    pub time_to_goal_s: Option<f64>,
+}
+
+pub fn build_report(
+    rec: &Recorder,
+    facts: &RunFacts<'_>,
+    transformations: Vec<TransformationReport>,
+    link: LinkReport,
+) -> Report {
+    let scenario = facts.scenario;
+    let convergence = rec
+        .samples
+        .iter()
+        .find(|s| {
+            let e = errors(s);
+            !e.is_empty() && e.iter().all(|e| *e < JOINED_BELOW_M)
+        })
+        .map(|s| s.t);
+    // A transformation is busy from its start until the slots are shaped and the
+    // followers back (or the blend's end if they never came back), plus 3 s.
+    let busy: Vec<(f64, f64)> = transformations
+        .iter()
+        .map(|t| {
+            let end = t.start_s
+                + scenario
+                    .formation
+                    .transition_s
+                    .max(t.duration_s.unwrap_or(0.0));
+            (t.start_s, end + 3.0)
+        })
+        .collect();
+    let in_busy = |t: f64| busy.iter().any(|(a, b)| t >= *a && t <= *b);
+    let moving_until = facts.time_to_goal_s.unwrap_or(facts.sim_time_s);
+    let robots = facts
+        .roles
+        .iter()
+        .enumerate()
+        .map(|(i, (id, role))| {
+            let moving: Vec<_> = rec
+                .samples
+                .iter()
+                .filter(|s| s.t <= moving_until)
+                .map(|s| &s.robots[i])
+                .collect();
+            let n = moving.len().max(1) as f64;
+            let mut report = RobotReport {
+                id: *id,
+                role: match role {
+                    Role::Leader => "leader".into(),
+                    Role::Follower => "follower".into(),
+                },
+                avg_speed_mps: moving.iter().map(|r| r.v.abs()).sum::<f64>() / n,
+                avg_abs_omega_radps: moving.iter().map(|r| r.omega.abs()).sum::<f64>() / n,
+                max_tracking_error_m: None,
+                stable_max_tracking_error_m: None,
+                joined_at_s: None,
+                p95_tracking_error_m: None,
+                time_within_0_1m_fraction: None,
+                max_tracking_error_transforming_m: None,
+            };
+            if *role != Role::Follower {
+                return report;
+            }
+            let errors: Vec<(&Sample, f64)> = rec
+                .samples
+                .iter()
+                .filter_map(|s| s.robots[i].error.map(|e| (s, e)))
+                .collect();
+            let joined = errors
+                .iter()
+                .find(|(_, e)| *e < JOINED_BELOW_M)
+                .map(|(s, _)| s.t);
+            let after: Vec<(&Sample, f64)> = errors
+                .iter()
+                .filter(|(s, _)| joined.is_some_and(|j| s.t >= j))
+                .copied()
+                .collect();
+            report.joined_at_s = joined;
+            report.max_tracking_error_m = if joined.is_some() {
+                max(after.iter().map(|(_, e)| *e))
+            } else {
+                max(errors.iter().map(|(_, e)| *e))
+            };
+            report.stable_max_tracking_error_m = max(after
+                .iter()
+                .filter(|(s, _)| !s.near_obstacle && !in_busy(s.t))
+                .map(|(_, e)| *e));
+            report.p95_tracking_error_m = quantile(after.iter().map(|(_, e)| *e).collect(), 0.95);
+            report.time_within_0_1m_fraction = (!after.is_empty()).then(|| {
+                after.iter().filter(|(_, e)| *e < JOINED_BELOW_M).count() as f64
+                    / after.len() as f64
+            });
+            report.max_tracking_error_transforming_m =
+                max(after.iter().filter(|(s, _)| in_busy(s.t)).map(|(_, e)| *e));
+            report
+        })
+        .collect();
+    Report {
+        schema_version: SCHEMA_VERSION,
+        scenario: scenario.name.clone(),
+        seed: facts.seed,
+        firmware: facts.firmware.to_string(),
+        sim_time_s: facts.sim_time_s,
+        wall_time_s: facts.wall_time_s,
+        goal_reached: facts.time_to_goal_s.is_some(),
+        time_to_goal_s: facts.time_to_goal_s,
+        collisions: rec.contacts,
+        min_obstacle_clearance_m: rec.min_clearance,
+        min_robot_separation_m: rec.min_separation,
+        convergence_time_s: convergence,
+        robots,
+        transformations,
+        link,
+        station_events: Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantile_is_nearest_rank() {
+        let v: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(quantile(v.clone(), 0.95), Some(95.0));
+        assert_eq!(quantile(v, 1.0), Some(100.0));
+        assert_eq!(quantile(vec![3.0], 0.95), Some(3.0));
+        assert_eq!(quantile(Vec::new(), 0.95), None);
+    }
+}
