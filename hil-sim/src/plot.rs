@@ -170,6 +170,15 @@ where
             BLACK.stroke_width(2),
         )))?;
     }
+    if let Some(route) = world.station.planner().route() {
+        chart
+            .draw_series(LineSeries::new(
+                route.points.iter().map(|p| (p.x, p.y)),
+                BLACK.mix(0.5).stroke_width(1),
+            ))?
+            .label("planned route")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
+    }
     for (i, robot) in world.robots.iter().enumerate() {
         let label = match robot.role {
             Role::Leader => format!("leader {}", robot.id),

@@ -70,6 +70,8 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
                 E::LeaderLost { at_ms } => (*at_ms, "leader_lost".to_string(), Some(leader)),
                 E::LeaderBack { at_ms } => (*at_ms, "leader_back".to_string(), Some(leader)),
                 E::Escape { at_ms } => (*at_ms, "local_minimum_escape".to_string(), None),
+                E::Replanned { at_ms } => (*at_ms, "replanned".to_string(), None),
+                E::NoRoute { at_ms, .. } => (*at_ms, "no_route".to_string(), None),
                 E::Arrived { at_ms } => (*at_ms, "goal_reached".to_string(), None),
                 E::FleetReady { at_ms } => (*at_ms, "fleet_ready".to_string(), None),
                 E::RobotFault {

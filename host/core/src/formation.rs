@@ -5,13 +5,19 @@
 //!   followers: follower k at rank ⌈k/2⌉·L_d, alternately left and right at ±φ), a line
 //!   (follower k at k·D behind: the paper's formula with the index fixed, `paper-notes.md`),
 //!   or a custom list.
-//! - **Passage ahead**: at points every 0.25 m along the leader's heading up to `lookahead`,
-//!   rays to the left and right measure the free width. Narrower than the wide formation
-//!   (its lateral extent plus footprints) plus `margin` → transform to the line.
-//! - **Back to wide** once every follower (its position and its slot) is past the far end
-//!   of the narrow stretch seen (by 1 m, along the leader's heading), nothing narrow lies
-//!   ahead of the leader (hysteresis: `margin + 0.5 m`), and the line has been held for
-//!   `min_dwell_s`. So the shape does not flap at the boundary.
+//! - **From the width of the way, nothing else**: at points every 0.25 m along the path
+//!   the leader will drive (the planned route; straight ahead under the pure field) and
+//!   along the path it drove, the clearance (distance to the nearest obstacle surface)
+//!   says whether the formation, symmetric about the leader's path, fits: half of its
+//!   lateral extent (footprints included) plus half of `margin` on every side. The same
+//!   measure the route planner prefers its way by, so the two agree.
+//! - **Into the line** when the way narrows within `lookahead` ahead.
+//! - **Back to the wide shape** once the way is wide (hysteresis: 0.3 m more) along the path
+//!   behind for the formation's length plus `EXIT_MARGIN` (every follower is out: dwell in
+//!   space), at every follower, and ahead for `lookahead` + the formation's length +
+//!   `REOPEN_AHEAD` (a short wide stretch between two pinches is not worth two changes),
+//!   and the line has been held for `min_dwell_s` (dwell in time). So a narrow section
+//!   costs one change into the line and one back, whatever the planner does meanwhile.
 //! - While the slots move, the leader slows to `TRANSFORM_SPEED` of its speed: the
 //!   followers' slot points move up to 1.9 m relative to the leader, and the followers'
 //!   speed is bounded.
@@ -121,8 +127,6 @@ pub struct FormationManager {
     from_blend: f64,
     transition_start: Option<f64>,
     line_since: Option<f64>,
-    /// The far end of the narrow stretch seen while heading for or holding the line.
-    passage_end: Option<DVec2>,
     events: Vec<Transformation>,
 }
 
@@ -132,9 +136,11 @@ pub const TRANSFORM_SPEED: f64 = 0.4;
 const SETTLE_S: f64 = 1.5;
 /// How far past the narrow stretch every follower must be before the wide shape returns, m.
 const EXIT_MARGIN: f64 = 1.0;
-
-/// Ray angles from the side normal, degrees (toward the front and the back).
-const FAN: [f64; 5] = [-45.0, -22.5, 0.0, 22.5, 45.0];
+/// Extra free width asked before the wide shape returns, m.
+const HYSTERESIS: f64 = 0.3;
+/// The wide shape returns only with this much wide way ahead beyond the lookahead and
+/// the formation's length, m.
+const REOPEN_AHEAD: f64 = 2.0;
 
 fn smoothstep(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
@@ -152,7 +158,6 @@ impl FormationManager {
             from_blend: 0.0,
             transition_start: None,
             line_since: None,
-            passage_end: None,
             events: Vec::new(),
         }
     }
@@ -196,6 +201,16 @@ impl FormationManager {
             .fold(0.0, f64::max)
     }
 
+    /// The distance of the farthest wide slot from the leader, m.
+    pub fn wide_reach(&self) -> f64 {
+        self.wide.iter().map(|s| s.0).fold(0.0, f64::max)
+    }
+
+    /// The distance of the last line slot from the leader, m.
+    pub fn line_reach(&self) -> f64 {
+        self.line.iter().map(|s| s.0).fold(0.0, f64::max)
+    }
+
     /// The distance of the farthest slot from the leader at the current blend, m.
     pub fn reach(&self) -> f64 {
         (0..self.spec.followers)
@@ -214,38 +229,33 @@ impl FormationManager {
             .collect()
     }
 
-    /// Whether `p` lies in a passage narrower than `need` across `dir`: obstacles on
-    /// both sides within `need` and less than `need` between them. A point inside or
-    /// touching an obstacle is not a passage (that obstacle is in the way: the planner's
-    /// business).
-    fn is_narrow(&self, map: &Map, p: DVec2, dir: DVec2, need: f64) -> bool {
-        if map.clearance(p, need) < self.spec.footprint {
-            return false;
-        }
-        // A fan of rays to each side; what counts is the lateral distance, so that round
-        // obstacles beside the path are seen even when no ray hits them square on.
-        let n = dir.perp();
-        let side = |sign: f64| {
-            FAN.iter()
-                .map(|deg: &f64| {
-                    let (s, c) = deg.to_radians().sin_cos();
-                    let ray = (n * c + dir * s) * sign;
-                    map.ray_cast(p, ray, need / c) * c
-                })
-                .fold(need, f64::min)
-        };
-        let (left, right) = (side(1.0), side(-1.0));
-        left < need && right < need && left + right < need
+    /// Whether the formation, centred on a path through `p`, lacks `need` of free width:
+    /// an obstacle closer than `need / 2`. A point inside or touching an obstacle is not a
+    /// passage (that obstacle is in the way: the planner's business).
+    fn is_narrow(&self, map: &Map, p: DVec2, need: f64) -> bool {
+        let c = map.clearance(p, 0.5 * need);
+        c >= self.spec.footprint && c < 0.5 * need
     }
 
-    /// The farthest narrow point within the lookahead, if any.
-    fn narrow_ahead(&self, map: &Map, leader: PlanPose, need: f64) -> Option<DVec2> {
-        let dir = DVec2::new(leader.heading.cos(), leader.heading.sin());
-        let steps = (self.spec.lookahead / 0.25).ceil() as usize;
-        (0..=steps)
-            .rev()
-            .map(|i| leader.position + dir * (i as f64 * 0.25))
-            .find(|p| self.is_narrow(map, *p, dir, need))
+    /// Whether any point of `path` (its first point first), within `length` along it, is
+    /// narrow for `need`.
+    fn narrow_along(&self, map: &Map, path: &[DVec2], length: f64, need: f64) -> bool {
+        let mut travelled = 0.0;
+        for w in path.windows(2) {
+            let d = w[1] - w[0];
+            let len = d.length();
+            if len < 1e-9 {
+                continue;
+            }
+            if self.is_narrow(map, w[0], need) {
+                return true;
+            }
+            travelled += len;
+            if travelled > length {
+                break;
+            }
+        }
+        false
     }
 
     /// The leader's speed factor: slower while the slots move and for `SETTLE_S` after,
@@ -262,25 +272,23 @@ impl FormationManager {
         }
     }
 
-    /// One step. `followers`: their positions where known. `force_line`: the planner
-    /// wants the narrow shape (following a boundary out of a trap).
+    /// One step. `ahead`: the path the leader will drive, from the leader on; `behind`:
+    /// the path it drove, newest first (both sampled finely, ≤ 0.25 m); `followers`:
+    /// their positions where known.
     pub fn step(
         &mut self,
         now_s: f64,
-        leader: PlanPose,
+        ahead: &[DVec2],
+        behind: &[DVec2],
         followers: &[DVec2],
         map: &Map,
-        force_line: bool,
     ) -> f64 {
-        let wide = self.spec.wide_width();
-        let need_in = wide + self.spec.margin;
-        let need_out = need_in + 0.5;
-        let dir = DVec2::new(leader.heading.cos(), leader.heading.sin());
+        let need_in = self.spec.wide_width() + self.spec.margin;
+        let need_out = need_in + HYSTERESIS;
+        let length = self.wide_reach().max(self.line_reach());
         match self.target {
             Target::Wide => {
-                let narrow = self.narrow_ahead(map, leader, need_in);
-                if force_line || narrow.is_some() {
-                    self.passage_end = narrow;
+                if self.narrow_along(map, ahead, self.spec.lookahead, need_in) {
                     self.switch(Target::Line, now_s, Reason::PassageAhead);
                 }
             }
@@ -288,28 +296,19 @@ impl FormationManager {
                 if self.blend >= 1.0 && self.line_since.is_none() {
                     self.line_since = Some(now_s);
                 }
-                let ahead = self.narrow_ahead(map, leader, need_out);
-                if let Some(p) = ahead {
-                    let further = self.passage_end.is_none_or(|e| (p - e).dot(dir) > 0.0);
-                    if further {
-                        self.passage_end = Some(p);
-                    }
-                }
                 let dwelt = self
                     .line_since
                     .is_some_and(|t| now_s - t >= self.spec.min_dwell_s);
-                let slots = self.slot_points(leader);
-                let past = |f: &DVec2| {
-                    self.passage_end
-                        .is_none_or(|e| (*f - e).dot(dir) > EXIT_MARGIN)
-                        && !self.is_narrow(map, *f, dir, need_out)
-                };
-                let open = !force_line
-                    && ahead.is_none()
-                    && followers.iter().all(past)
-                    && slots.iter().all(past);
-                if dwelt && open {
-                    self.passage_end = None;
+                let open = dwelt
+                    && !self.narrow_along(
+                        map,
+                        ahead,
+                        self.spec.lookahead + length + REOPEN_AHEAD,
+                        need_out,
+                    )
+                    && !self.narrow_along(map, behind, length + EXIT_MARGIN, need_out)
+                    && !followers.iter().any(|f| self.is_narrow(map, *f, need_out));
+                if open {
                     self.switch(Target::Wide, now_s, Reason::PassageBehind);
                 }
             }

@@ -16,7 +16,7 @@ use crate::formation::{FormationSpec, WideShape};
 use crate::geometry::Obstacle;
 use crate::map::Map;
 use crate::planner::apf::ApfParams;
-use crate::planner::PlannerParams;
+use crate::planner::{Guidance, PlannerParams};
 
 /// A scenario that could not be loaded: where, which field, why.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -138,6 +138,18 @@ impl FaultSpec {
 pub struct MapSpec {
     #[serde(default)]
     pub obstacles: Vec<ObstacleSpec>,
+    /// The site's edge (kerbs, fences): nothing drives outside it. Absent: the site is
+    /// open around the obstacles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounds: Option<BoundsSpec>,
+}
+
+/// An axis-aligned site edge.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BoundsSpec {
+    pub min: [f64; 2],
+    pub max: [f64; 2],
 }
 
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -384,9 +396,19 @@ impl RouteSpec {
     }
 }
 
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum PlannerMode {
+    Route,
+    Apf,
+}
+
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlannerToml {
+    /// `route` (default): a route on the site map, the APF as the local layer; `apf`:
+    /// the paper's potential field alone.
+    pub mode: PlannerMode,
     pub k_a: f64,
     pub k_r: f64,
     pub r_det: f64,
@@ -404,6 +426,7 @@ impl Default for PlannerToml {
     fn default() -> Self {
         let p = PlannerParams::DEFAULT;
         Self {
+            mode: PlannerMode::Route,
             k_a: p.apf.k_a,
             k_r: p.apf.k_r,
             r_det: p.apf.r_det,
@@ -676,6 +699,30 @@ impl Scenario {
         }
         fraction("robot.motor_dead_band", r.motor_dead_band)?;
 
+        if let Some(b) = self.map.bounds {
+            finite("map.bounds.min", &b.min)?;
+            finite("map.bounds.max", &b.max)?;
+            if b.min[0] >= b.max[0] || b.min[1] >= b.max[1] {
+                return fail("map.bounds", "`min` must lie below and left of `max`");
+            }
+            let inside =
+                |p: DVec2| p.x > b.min[0] && p.y > b.min[1] && p.x < b.max[0] && p.y < b.max[1];
+            for (i, r) in self.robots.iter().enumerate() {
+                if !inside(DVec2::new(r.start.x, r.start.y)) {
+                    return fail(&format!("robots[{i}].start"), "lies outside `map.bounds`");
+                }
+            }
+            for (i, p) in self.route.points().iter().enumerate() {
+                if !inside(*p) {
+                    let field = if i + 1 == self.route.points().len() {
+                        "route.goal".to_string()
+                    } else {
+                        format!("route.waypoints[{i}]")
+                    };
+                    return fail(&field, "lies outside `map.bounds`");
+                }
+            }
+        }
         for (i, o) in self.map.obstacles.iter().enumerate() {
             let field = format!("map.obstacles[{i}]");
             o.check(&field)?;
@@ -916,14 +963,25 @@ impl Scenario {
         f
     }
 
+    /// The site map: the obstacles, and the site's edge as four walls.
     pub fn build_map(&self) -> Map {
-        Map::new(
-            self.map
-                .obstacles
-                .iter()
-                .map(ObstacleSpec::to_obstacle)
-                .collect(),
-        )
+        let mut obstacles: Vec<Obstacle> = self
+            .map
+            .obstacles
+            .iter()
+            .map(ObstacleSpec::to_obstacle)
+            .collect();
+        if let Some(b) = self.map.bounds {
+            let (lo, hi) = (DVec2::from(b.min), DVec2::from(b.max));
+            let corners = [lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)];
+            for i in 0..4 {
+                obstacles.push(Obstacle::Segment {
+                    a: corners[i],
+                    b: corners[(i + 1) % 4],
+                });
+            }
+        }
+        Map::new(obstacles)
     }
 
     pub fn planner_params(&self) -> PlannerParams {
@@ -943,6 +1001,10 @@ impl Scenario {
             arrival_tolerance: self.route.arrival_tolerance,
             waypoint_tolerance: self.route.waypoint_tolerance,
             follow_clearance: p.follow_clearance,
+            guidance: match p.mode {
+                PlannerMode::Route => Guidance::Route,
+                PlannerMode::Apf => Guidance::Field,
+            },
             ..PlannerParams::DEFAULT
         }
     }

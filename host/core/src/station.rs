@@ -15,7 +15,8 @@ use protocol::{units, Address, FleetKey, FrameDecoder, Reject, RejectCounts, MAX
 
 use crate::formation::{FormationManager, FormationSpec, Target};
 use crate::map::Map;
-use crate::planner::{Mode, PlanPose, Planner, PlannerParams};
+use crate::planner::route::{RouteParams, RoutePlanner};
+use crate::planner::{Guidance, PlanPose, Planner, PlannerParams};
 
 /// Most robots one base station serves.
 pub const MAX_ROBOTS: usize = 1024;
@@ -72,6 +73,15 @@ pub enum StationEvent {
     Escape {
         at_ms: u32,
     },
+    /// The way ahead was blocked: the route was planned again.
+    Replanned {
+        at_ms: u32,
+    },
+    /// No route to the next waypoint: the leader holds.
+    NoRoute {
+        at_ms: u32,
+        why: String,
+    },
     Arrived {
         at_ms: u32,
     },
@@ -119,8 +129,17 @@ pub struct BaseStation {
     /// A robot fault stopped the mission: Stop to all, no more commands.
     halted: bool,
     escapes_seen: u32,
+    replans_seen: u32,
+    no_route_seen: bool,
     last_command: (f64, f64),
+    /// The leader's estimated path, oldest first, points `PATH_STEP` apart.
+    driven: std::collections::VecDeque<DVec2>,
 }
+
+/// Spacing of the paths the formation manager looks along, m.
+const PATH_STEP: f64 = 0.25;
+/// How much of the leader's path the station keeps, m.
+const DRIVEN_KEPT: f64 = 40.0;
 
 impl StationConfig {
     pub fn from_scenario(s: &crate::scenario::Scenario) -> Self {
@@ -141,6 +160,14 @@ impl StationConfig {
     }
 }
 
+impl StationConfig {
+    /// The route planner's parameters for this fleet.
+    pub fn route_params(&self) -> RouteParams {
+        let f = &self.formation;
+        RouteParams::for_fleet(f.footprint, f.wide_width(), f.margin)
+    }
+}
+
 impl BaseStation {
     /// `session`: fresh at every start (random); `nonce_base`: random.
     pub fn new(cfg: StationConfig, key: FleetKey, session: u32, nonce_base: u64) -> Self {
@@ -156,7 +183,15 @@ impl BaseStation {
             link.add_peer(Address::Robot(id));
             robots.insert(id, RobotStatus::default());
         }
-        let planner = Planner::new(cfg.planner, cfg.route.clone(), cfg.initial_speed);
+        let planner = match cfg.planner.guidance {
+            Guidance::Field => Planner::new(cfg.planner, cfg.route.clone(), cfg.initial_speed),
+            Guidance::Route => Planner::routed(
+                cfg.planner,
+                cfg.route.clone(),
+                cfg.initial_speed,
+                RoutePlanner::new(&cfg.map, &cfg.route, cfg.route_params()),
+            ),
+        };
         let formation = FormationManager::new(cfg.formation.clone());
         Self {
             cfg,
@@ -173,6 +208,9 @@ impl BaseStation {
             ready: false,
             halted: false,
             escapes_seen: 0,
+            replans_seen: 0,
+            no_route_seen: false,
+            driven: std::collections::VecDeque::new(),
             last_command: (0.0, 0.0),
         }
     }
@@ -311,6 +349,20 @@ impl BaseStation {
         })
     }
 
+    fn record_leader_path(&mut self, p: DVec2) {
+        if self
+            .driven
+            .back()
+            .is_some_and(|q| (p - *q).length() < PATH_STEP)
+        {
+            return;
+        }
+        self.driven.push_back(p);
+        if self.driven.len() as f64 * PATH_STEP > DRIVEN_KEPT {
+            self.driven.pop_front();
+        }
+    }
+
     /// Follower positions from fresh telemetry, in slot order.
     pub fn follower_positions(&self, now_ms: u32) -> Vec<DVec2> {
         self.cfg
@@ -377,11 +429,20 @@ impl BaseStation {
 
         let now_s = now_ms as f64 / 1000.0;
         let followers = self.follower_positions(now_ms);
-        let escaping = matches!(self.planner.mode(), Mode::Escape { .. });
+        self.record_leader_path(leader.pose.position);
+        self.planner
+            .prepare(now_s, leader.pose.position, &self.cfg.map);
+        let spec = self.formation.spec();
+        let horizon =
+            spec.lookahead + self.formation.wide_reach().max(self.formation.line_reach()) + 3.0;
+        let ahead = self.planner.path_ahead(leader.pose, horizon, PATH_STEP);
+        let behind: Vec<DVec2> = std::iter::once(leader.pose.position)
+            .chain(self.driven.iter().rev().copied())
+            .collect();
         let before = self.formation.transformations().len();
         let blend = self
             .formation
-            .step(now_s, leader.pose, &followers, &self.cfg.map, escaping);
+            .step(now_s, &ahead, &behind, &followers, &self.cfg.map);
         if self.formation.transformations().len() > before {
             let to = self.formation.target();
             tracing::info!(?to, "formation change");
@@ -447,6 +508,22 @@ impl BaseStation {
             self.escapes_seen = self.planner.escapes();
             tracing::info!("planner: local minimum, following the boundary");
             self.events.push(StationEvent::Escape { at_ms: now_ms });
+        }
+        if self.planner.replans() > self.replans_seen {
+            self.replans_seen = self.planner.replans();
+            self.events.push(StationEvent::Replanned { at_ms: now_ms });
+        }
+        match (self.planner.no_route(), self.no_route_seen) {
+            (Some(why), false) => {
+                tracing::warn!("no route: {why}");
+                self.events.push(StationEvent::NoRoute {
+                    at_ms: now_ms,
+                    why: why.to_string(),
+                });
+                self.no_route_seen = true;
+            }
+            (None, true) => self.no_route_seen = false,
+            _ => {}
         }
         if self.planner.arrived() && !was_arrived {
             tracing::info!("goal reached");

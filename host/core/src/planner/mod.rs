@@ -1,5 +1,20 @@
-//! The leader's planner: the APF toward the route's next waypoint, with the whole
-//! formation's footprint in the field, and a way out of local minima.
+//! The leader's planner, in two layers (`route`: the default), or the paper's pure APF
+//! (`field`, `[planner] mode = "apf"`).
+//!
+//! **Route (default).** A global route over the site map ([`route`]: A\* on a clearance
+//! grid, wide ways preferred, line-only passages taken when they are the way), planned at
+//! the first step from where the leader is, through the waypoints in order. The APF is the
+//! local layer: the attraction pulls toward a carrot `route_lookahead` ahead on the route;
+//! the paper's repulsion pushes away from what is near, capped at the attraction's
+//! strength and never backward along the route (the route is known to be free: a
+//! repulsion that pushes the leader back out of a gap it must take is the APF's classic
+//! failure). When the leader makes no progress along the route for `stuck_window_s`
+//! although nothing holds it back (followers, a shape change), the way is blocked by
+//! something the map does not hold: the stretch ahead is marked blocked and the route is
+//! planned again (a `replanned` event). No route at all: the leader holds (`NoRoute`)
+//! and tries again every `stuck_window_s`.
+//!
+//! **Field (the paper's method, fixed).**
 //!
 //! - **Cohesion**: the leader's field treats the leader as wide as the formation: the
 //!   clearance in the repulsion is measured from the robot's footprint **inflated by the
@@ -24,6 +39,7 @@
 //!   well it points where the robot is heading; acceleration and turn rate limited.
 
 pub mod apf;
+pub mod route;
 
 use std::collections::VecDeque;
 
@@ -31,6 +47,16 @@ use glam::DVec2;
 
 use crate::map::Map;
 use apf::ApfParams;
+use route::{NoRoute, Route, RoutePlanner};
+
+/// How the leader finds its way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Guidance {
+    /// A route on the site map, the APF as the local layer.
+    Route,
+    /// The paper's potential field alone, with boundary-following escapes.
+    Field,
+}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlannerParams {
@@ -50,6 +76,9 @@ pub struct PlannerParams {
     /// Clearance kept while following a boundary, m.
     pub follow_clearance: f64,
     pub escape_timeout_s: f64,
+    pub guidance: Guidance,
+    /// How far ahead on the route the attraction pulls, m.
+    pub route_lookahead: f64,
 }
 
 impl PlannerParams {
@@ -66,6 +95,8 @@ impl PlannerParams {
         oscillation_flips: 8,
         follow_clearance: 0.8,
         escape_timeout_s: 60.0,
+        guidance: Guidance::Route,
+        route_lookahead: 1.5,
     };
 }
 
@@ -83,6 +114,10 @@ pub enum Mode {
         best_distance: f64,
         best_at_s: f64,
     },
+    /// Following the planned route.
+    Route,
+    /// No route to the next waypoint: holding.
+    NoRoute,
     /// The last waypoint is reached.
     Arrived,
 }
@@ -109,6 +144,25 @@ pub struct Planner {
     inflation: f64,
     /// (farthest slot distance, followers' usable speed), when a formation follows.
     formation: Option<(f64, f64)>,
+    routing: Option<Box<Routing>>,
+}
+
+/// The route layer's state.
+#[derive(Debug, Clone)]
+struct Routing {
+    planner: RoutePlanner,
+    route: Option<Route>,
+    /// Arc length of each remaining waypoint on the route.
+    waypoint_arc: Vec<f64>,
+    /// Progress along the route, m.
+    s: f64,
+    /// Discs found blocked (centre, radius).
+    blocked: Vec<(DVec2, f64)>,
+    /// (time, progress) while nothing held the leader back.
+    progress: VecDeque<(f64, f64)>,
+    replans: u32,
+    failure: Option<NoRoute>,
+    last_attempt_s: f64,
 }
 
 /// The robot's pose as the planner sees it.
@@ -141,7 +195,65 @@ impl Planner {
             escapes: 0,
             inflation: 0.0,
             formation: None,
+            routing: None,
         }
+    }
+
+    /// A planner that follows a route planned on the site map by `router`.
+    pub fn routed(
+        params: PlannerParams,
+        route: Vec<DVec2>,
+        initial_speed: f64,
+        router: RoutePlanner,
+    ) -> Self {
+        let mut p = Self::new(params, route, initial_speed);
+        p.mode = Mode::Route;
+        p.routing = Some(Box::new(Routing {
+            planner: router,
+            route: None,
+            waypoint_arc: Vec::new(),
+            s: 0.0,
+            blocked: Vec::new(),
+            progress: VecDeque::new(),
+            replans: 0,
+            failure: None,
+            last_attempt_s: f64::NEG_INFINITY,
+        }));
+        p
+    }
+
+    /// The route being followed (route guidance, once planned).
+    pub fn route(&self) -> Option<&Route> {
+        self.routing.as_ref().and_then(|r| r.route.as_ref())
+    }
+
+    /// How many times the route was planned again because the way was blocked.
+    pub fn replans(&self) -> u32 {
+        self.routing.as_ref().map_or(0, |r| r.replans)
+    }
+
+    /// Why there is no route now, if there is none.
+    pub fn no_route(&self) -> Option<&NoRoute> {
+        self.routing.as_ref().and_then(|r| r.failure.as_ref())
+    }
+
+    /// The way the leader will drive next, `length` metres sampled every `step` from `pose`:
+    /// the route, or straight ahead under the field.
+    pub fn path_ahead(&self, pose: PlanPose, length: f64, step: f64) -> Vec<DVec2> {
+        if let Some((route, s)) = self
+            .routing
+            .as_ref()
+            .and_then(|r| r.route.as_ref().map(|x| (x, r.s)))
+        {
+            let mut pts = vec![pose.position];
+            pts.extend(route.sample(s + step, length - step, step));
+            return pts;
+        }
+        let dir = DVec2::new(pose.heading.cos(), pose.heading.sin());
+        let n = (length / step).ceil() as usize;
+        (0..=n)
+            .map(|i| pose.position + dir * (i as f64 * step))
+            .collect()
     }
 
     /// Tells the planner how far the farthest slot is from the leader and how fast the
@@ -193,6 +305,9 @@ impl Planner {
         half_width: f64,
         speed_scale: f64,
     ) -> Command {
+        if self.routing.is_some() {
+            return self.follow_route(now_s, dt, pose, map, speed_scale);
+        }
         let p = self.params;
         let pos = pose.position;
         // Waypoints.
@@ -292,6 +407,180 @@ impl Planner {
             v: self.v,
             omega,
             mode: self.mode,
+            direction,
+        }
+    }
+
+    /// Plans the route from `from` if there is none yet (or retries a failed plan every
+    /// `stuck_window_s`). The station calls it from its first sight of the leader, so the
+    /// formation manager looks along the route before the leader moves.
+    pub fn prepare(&mut self, now_s: f64, from: DVec2, map: &Map) {
+        let window = self.params.stuck_window_s;
+        let needs_plan = self.routing.as_ref().is_some_and(|r| {
+            r.route.is_none() && (r.failure.is_none() || now_s - r.last_attempt_s >= window)
+        });
+        if needs_plan && self.mode != Mode::Arrived {
+            self.plan_route(from, now_s, map);
+        }
+    }
+
+    /// Plans the route from `from` through the remaining waypoints (the grid grows to
+    /// cover `from` if the leader stands outside it).
+    fn plan_route(&mut self, from: DVec2, now_s: f64, map: &Map) {
+        let waypoints: Vec<DVec2> = self.route[self.next..].to_vec();
+        let Some(routing) = self.routing.as_mut() else {
+            return;
+        };
+        routing.last_attempt_s = now_s;
+        if !routing.planner.covers(from) {
+            let mut points = waypoints.clone();
+            points.push(from);
+            routing.planner = RoutePlanner::new(map, &points, routing.planner.params);
+        }
+        let mut points = vec![from];
+        let mut arcs = Vec::new();
+        let mut length = 0.0;
+        for w in waypoints {
+            let start = *points.last().expect("starts with `from`");
+            match routing.planner.plan(start, w, &routing.blocked) {
+                Ok(leg) => {
+                    length += leg.length();
+                    points.extend(leg.points.into_iter().skip(1));
+                    arcs.push(length);
+                }
+                Err(e) => {
+                    routing.failure = Some(e);
+                    routing.route = None;
+                    return;
+                }
+            }
+        }
+        routing.failure = None;
+        routing.route = Some(Route::new(points));
+        routing.waypoint_arc = arcs;
+        routing.s = 0.0;
+        routing.progress.clear();
+    }
+
+    /// One step along the route: waypoints, blockage, the local APF toward the carrot.
+    fn follow_route(
+        &mut self,
+        now_s: f64,
+        dt: f64,
+        pose: PlanPose,
+        map: &Map,
+        speed_scale: f64,
+    ) -> Command {
+        let p = self.params;
+        let pos = pose.position;
+        let hold = |me: &mut Self, mode: Mode| {
+            me.v = (me.v - p.max_accel * dt).max(0.0);
+            me.mode = mode;
+            Command {
+                v: me.v,
+                omega: 0.0,
+                mode,
+                direction: DVec2::ZERO,
+            }
+        };
+        if self.mode == Mode::Arrived {
+            return hold(self, Mode::Arrived);
+        }
+        let window = p.stuck_window_s;
+        self.prepare(now_s, pos, map);
+        let turn = self.turn_limit();
+        let Some(routing) = self.routing.as_mut() else {
+            return hold(self, Mode::NoRoute);
+        };
+        let Some(route) = routing.route.as_ref() else {
+            return hold(self, Mode::NoRoute);
+        };
+        // Progress: the nearest point of the route a little behind to a little ahead.
+        let s = route
+            .project(pos, routing.s - 1.0, routing.s + 3.0)
+            .max(0.0);
+        routing.s = s;
+        // Waypoints passed (the last: arrived).
+        let mut arrived = false;
+        while let Some(&arc) = routing.waypoint_arc.first() {
+            let last = routing.waypoint_arc.len() == 1;
+            let tol = if last {
+                p.arrival_tolerance
+            } else {
+                p.waypoint_tolerance
+            };
+            if (route.point_at(arc) - pos).length() > tol {
+                break;
+            }
+            routing.waypoint_arc.remove(0);
+            self.next += 1;
+            arrived = last;
+        }
+        // Blocked: no progress for a window although nothing held the leader back.
+        if speed_scale >= 0.9 {
+            routing.progress.push_back((now_s, s));
+        } else {
+            routing.progress.clear();
+        }
+        while routing
+            .progress
+            .front()
+            .is_some_and(|(t, _)| now_s - t > window)
+        {
+            routing.progress.pop_front();
+        }
+        let stalled = routing
+            .progress
+            .front()
+            .is_some_and(|&(t0, s0)| now_s - t0 >= window - 0.5 && s - s0 < p.stuck_progress);
+        if arrived {
+            return hold(self, Mode::Arrived);
+        }
+        if stalled {
+            let ahead = route.point_at(s + 0.8);
+            tracing::info!(x = ahead.x, y = ahead.y, "route blocked: planning again");
+            routing.blocked.push((ahead, 0.5));
+            routing.replans += 1;
+            routing.route = None;
+            self.plan_route(pos, now_s, map);
+            return hold(self, Mode::Route);
+        }
+        let end = route.length();
+        let carrot = route.point_at(s + p.route_lookahead);
+        let tangent = route.tangent_at(s);
+        let to_carrot = carrot - pos;
+        let attraction = to_carrot.normalize_or_zero() * p.apf.k_a;
+        let a = ApfParams {
+            footprint: p.apf.footprint,
+            ..p.apf
+        };
+        let mut repulsion = apf::repulsion(pos, map, &a);
+        let back = repulsion.dot(tangent);
+        if back < 0.0 {
+            repulsion -= tangent * back;
+        }
+        let cap = p.apf.k_a;
+        if repulsion.length() > cap {
+            repulsion = repulsion.normalize() * cap;
+        }
+        let direction = (attraction + repulsion).normalize_or_zero();
+        let err = if direction == DVec2::ZERO {
+            0.0
+        } else {
+            wrap(direction.y.atan2(direction.x) - pose.heading)
+        };
+        let omega = (p.heading_gain * err).clamp(-turn, turn);
+        let align = err.cos().max(0.0);
+        // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
+        let to_end = (end - s).max((route.point_at(end) - pos).length());
+        let braking = (p.max_accel * to_end).sqrt();
+        let target = (p.max_speed * align * align * speed_scale.clamp(0.0, 1.0)).min(braking);
+        self.v += (target - self.v).clamp(-p.max_accel * dt, p.max_accel * dt);
+        self.mode = Mode::Route;
+        Command {
+            v: self.v,
+            omega,
+            mode: Mode::Route,
             direction,
         }
     }
