@@ -49,13 +49,30 @@ struct Run {
 /// The leader drives along y = 10 (+ a small weave) at 0.4 m/s; followers sit on their
 /// slot points. Records each transformation with the leader's x and time.
 fn drive(map: &Map, weave: f64) -> Run {
+    drive_for(map, weave, 1000)
+}
+
+/// The path ahead (straight along the heading) and behind (driven, newest first).
+fn paths(leader: PlanPose, driven: &[DVec2]) -> (Vec<DVec2>, Vec<DVec2>) {
+    let dir = DVec2::new(leader.heading.cos(), leader.heading.sin());
+    let ahead = (0..=80)
+        .map(|i| leader.position + dir * (i as f64 * 0.25))
+        .collect();
+    let behind = std::iter::once(leader.position)
+        .chain(driven.iter().rev().copied())
+        .collect();
+    (ahead, behind)
+}
+
+fn drive_for(map: &Map, weave: f64, steps: usize) -> Run {
     let mut fm = FormationManager::new(spec());
+    let mut driven: Vec<DVec2> = Vec::new();
     let mut run = Run {
         events: vec![],
         line_done_at_x: None,
     };
     let dt = 0.1;
-    for i in 0..1000 {
+    for i in 0..steps {
         let t = i as f64 * dt;
         let x = 2.0 + 0.4 * t;
         let heading = weave * (t * 0.8).sin();
@@ -65,7 +82,14 @@ fn drive(map: &Map, weave: f64) -> Run {
         };
         let followers = fm.slot_points(leader);
         let before = fm.transformations().len();
-        fm.step(t, leader, &followers, map, false);
+        let (ahead, behind) = paths(leader, &driven);
+        fm.step(t, &ahead, &behind, &followers, map);
+        if driven
+            .last()
+            .is_none_or(|p| (*p - leader.position).length() >= 0.25)
+        {
+            driven.push(leader.position);
+        }
         if fm.transformations().len() > before {
             run.events.push((fm.target(), t, x));
         }
@@ -107,6 +131,22 @@ fn no_flapping_at_the_boundary() {
 }
 
 #[test]
+fn three_pinches_in_a_street_cost_at_most_two_changes_each() {
+    // A 12 m wide street along y = 10 with three 3 m pinches, 2 m long, 12 m apart.
+    let mut obstacles = vec![block(-20.0, 2.0, 80.0, 4.0), block(-20.0, 16.0, 80.0, 18.0)];
+    for x in [12.0, 24.0, 36.0] {
+        obstacles.push(block(x, 4.0, x + 2.0, 8.5));
+        obstacles.push(block(x, 11.5, x + 2.0, 16.0));
+    }
+    let map = Map::new(obstacles);
+    let run = drive_for(&map, 0.0, 1800);
+    println!("pinches: {:?}", run.events);
+    assert!(run.events.len() <= 6, "{:?}", run.events);
+    assert_eq!(run.events.first().map(|e| e.0), Some(Target::Line));
+    assert_eq!(run.events.last().map(|e| e.0), Some(Target::Wide), "never came back");
+}
+
+#[test]
 fn slots_move_without_jumps() {
     let mut fm = FormationManager::new(spec());
     let map = gap(3.0);
@@ -117,7 +157,8 @@ fn slots_move_without_jumps() {
             position: DVec2::new(2.0 + 0.4 * t, 10.0),
             heading: 0.0,
         };
-        fm.step(t, leader, &fm.slot_points(leader), &map, false);
+        let (ahead, behind) = paths(leader, &[]);
+        fm.step(t, &ahead, &behind, &fm.slot_points(leader), &map);
         let pts = fm.slot_points(leader);
         if let Some(prev) = &last {
             for (a, b) in prev.iter().zip(&pts) {
