@@ -143,7 +143,11 @@ fn three_pinches_in_a_street_cost_at_most_two_changes_each() {
     println!("pinches: {:?}", run.events);
     assert!(run.events.len() <= 6, "{:?}", run.events);
     assert_eq!(run.events.first().map(|e| e.0), Some(Target::Line));
-    assert_eq!(run.events.last().map(|e| e.0), Some(Target::Wide), "never came back");
+    assert_eq!(
+        run.events.last().map(|e| e.0),
+        Some(Target::Wide),
+        "never came back"
+    );
 }
 
 #[test]

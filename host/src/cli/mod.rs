@@ -25,19 +25,33 @@ pub const SHIPPED: &[(&str, &str)] = &[
     ),
 ];
 
-/// A scenario from a file, or a shipped one by name.
+/// A scenario from a file, or a shipped one by name; refused, with every unreachable
+/// waypoint named, when the fleet has no way to its goal.
 pub fn load_scenario(arg: &str) -> anyhow::Result<Scenario> {
     let path = std::path::Path::new(arg);
-    if path.exists() {
-        return Ok(Scenario::load(path)?);
+    let (src, file) = if path.exists() {
+        let src = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        (src, path.display().to_string())
+    } else {
+        match SHIPPED.iter().find(|(name, _)| *name == arg) {
+            Some((name, src)) => (src.to_string(), format!("<shipped {name}>")),
+            None => bail!(
+                "{arg}: no such file, and not a shipped scenario ({})",
+                SHIPPED.iter().map(|s| s.0).collect::<Vec<_>>().join(", ")
+            ),
+        }
+    };
+    let scenario = Scenario::parse(&src, &file)?;
+    let problems = scenario.route_errors(&src, &file);
+    if !problems.is_empty() {
+        let lines: Vec<String> = problems.iter().map(ToString::to_string).collect();
+        bail!(
+            "{}\n{file}: no way for the fleet: refused before anything moves",
+            lines.join("\n")
+        );
     }
-    match SHIPPED.iter().find(|(name, _)| *name == arg) {
-        Some((name, src)) => Ok(Scenario::parse(src, &format!("<shipped {name}>"))?),
-        None => bail!(
-            "{arg}: no such file, and not a shipped scenario ({})",
-            SHIPPED.iter().map(|s| s.0).collect::<Vec<_>>().join(", ")
-        ),
-    }
+    Ok(scenario)
 }
 
 /// Where the fleet key comes from. Never from the binary: a real run without one fails.
