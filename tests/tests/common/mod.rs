@@ -1,6 +1,8 @@
 //! Shared helpers: shipped scenarios, runs, and the bounds the issues set.
 #![allow(dead_code)]
 
+pub mod generate;
+
 use base_station::scenario::Scenario;
 use hil_sim::report::Report;
 use hil_sim::run::simulate;

@@ -1,0 +1,172 @@
+//! The fleet on maps nobody tuned for: generated per seed (bin fields with a free way,
+//! streets with pinches and bends, a bin on the start line, scattered starts, traps,
+//! alleys down to 1.3 m, 5- and 7-follower V, maps with no way). Every map with a way:
+//! goal reached, 0 contacts, every follower's max tracking error after its join ≤ 0.35 m,
+//! at most two shape changes per narrow section of the leader's path. Every map without
+//! one: refused up front, naming the waypoint.
+//!
+//! A failing map is written to `target/generated-maps/NAME.toml`: `basestation sim` it.
+
+mod common;
+
+use base_station::scenario::Scenario;
+use common::generate::{self, Generated};
+use glam::DVec2;
+use hil_sim::report::Report;
+use hil_sim::world::World;
+
+const SEEDS: std::ops::Range<u64> = 1..7;
+
+fn save(g: &Generated) -> String {
+    let dir = format!("{}/../target/generated-maps", env!("CARGO_MANIFEST_DIR"));
+    let _ = std::fs::create_dir_all(&dir);
+    let path = format!("{dir}/{}.toml", g.name);
+    let _ = std::fs::write(&path, &g.toml);
+    path
+}
+
+/// Stretches of the leader's driven path where the wide formation does not fit.
+fn narrow_sections(world: &World) -> usize {
+    let spec = world.scenario.formation_spec();
+    let half = 0.5 * (spec.wide_width() + spec.margin);
+    let leader = world.robots.iter().position(|r| r.id == world.scenario.leader().id);
+    let Some(l) = leader else { return 0 };
+    let mut sections = 0;
+    let mut inside = false;
+    for s in &world.recorder.samples {
+        let p = DVec2::new(s.robots[l].x, s.robots[l].y);
+        let narrow = world.map.clearance(p, half) < half;
+        if narrow && !inside {
+            sections += 1;
+        }
+        inside = narrow;
+    }
+    sections
+}
+
+/// Runs a map with a way; returns a one-line summary or what went wrong.
+fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
+    let path = save(g);
+    let s = Scenario::parse(&g.toml, &g.name).map_err(|e| format!("{path}: does not parse: {e}"))?;
+    let problems = s.route_problems();
+    if !problems.is_empty() {
+        return Err(format!("{path}: refused although a way exists: {problems:?}"));
+    }
+    let (r, world): (Report, World) = common::run(s, seed);
+    let sections = narrow_sections(&world);
+    let changes = r.transformations.len();
+    let errors: Vec<f64> = r
+        .robots
+        .iter()
+        .filter_map(|x| x.max_tracking_error_m)
+        .collect();
+    let worst = errors.iter().copied().fold(0.0, f64::max);
+    let joined = r
+        .robots
+        .iter()
+        .filter(|x| x.role == "follower")
+        .map(|x| x.joined_at_s.unwrap_or(f64::INFINITY))
+        .fold(0.0, f64::max);
+    let line = format!(
+        "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m changes {changes} sections {sections}",
+        g.name,
+        r.time_to_goal_s.map_or("never".into(), |t| format!("{t:.1}")),
+        r.collisions,
+        r.min_obstacle_clearance_m,
+        joined,
+    );
+    let mut bad = Vec::new();
+    if !r.goal_reached {
+        bad.push("goal not reached".to_string());
+    }
+    if r.collisions > 0 {
+        bad.push(format!("{} contacts", r.collisions));
+    }
+    if worst > 0.35 {
+        bad.push(format!("max tracking error {worst:.3} m"));
+    }
+    if changes > 2 * sections {
+        bad.push(format!("{changes} shape changes for {sections} narrow sections"));
+    }
+    if bad.is_empty() {
+        Ok(line)
+    } else {
+        Err(format!("{line}\n    {path}: {}", bad.join(", ")))
+    }
+}
+
+fn suite(name: &str, make: impl Fn(u64) -> Generated) {
+    let mut failures = Vec::new();
+    for seed in SEEDS {
+        let g = make(seed);
+        match check_way(&g, seed) {
+            Ok(line) => println!("ok   {line}"),
+            Err(e) => {
+                println!("FAIL {e}");
+                failures.push(e);
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{name}: {} of {} maps failed:\n{}",
+        failures.len(),
+        SEEDS.count(),
+        failures.join("\n")
+    );
+}
+
+#[test]
+fn bin_fields_with_a_free_way() {
+    suite("bin fields", |seed| generate::bin_field(seed, 60, 2));
+}
+
+#[test]
+fn dense_bin_fields_with_a_free_way() {
+    suite("dense bin fields", |seed| generate::bin_field(seed, 200, 2));
+}
+
+#[test]
+fn streets_with_pinches_and_bends() {
+    suite("streets", |seed| generate::street(seed, 2));
+}
+
+#[test]
+fn a_bin_on_the_start_line() {
+    suite("bin on the line", generate::bin_on_the_line);
+}
+
+#[test]
+fn scattered_starts_join_without_contact() {
+    suite("scattered starts", generate::scattered_starts);
+}
+
+#[test]
+fn u_traps_open_toward_the_start() {
+    suite("traps", generate::trap);
+}
+
+#[test]
+fn alleys_with_a_bend_down_to_1_3_m() {
+    suite("alleys 2 m", |seed| generate::alley(seed, 2.0));
+    suite("alleys 1.3 m", |seed| generate::alley(seed, 1.3));
+}
+
+#[test]
+fn five_and_seven_follower_vs() {
+    suite("5-follower V in bin fields", |seed| generate::bin_field(seed, 40, 5));
+    suite("7-follower V in streets", |seed| generate::street(seed, 7));
+}
+
+#[test]
+fn maps_without_a_way_are_refused_up_front() {
+    for seed in 1..9 {
+        let g = generate::no_way(seed);
+        let path = save(&g);
+        let s = Scenario::parse(&g.toml, &g.name).expect("parses");
+        let problems = s.route_problems();
+        println!("{}: {problems:?}", g.name);
+        assert!(!problems.is_empty(), "{path}: no way, yet accepted");
+        assert_eq!(problems[0].0, "route.goal", "{path}");
+    }
+}
