@@ -39,6 +39,8 @@ pub struct StationConfig {
     pub telemetry_timeout_ms: u32,
     /// The speed a follower can use to hold its slot (a margin under its limit), m/s.
     pub follower_speed: f64,
+    /// The acceleration a follower can use to keep up (a margin under its limit), m/s².
+    pub follower_accel: f64,
     /// Control period, ms.
     pub period_ms: u32,
 }
@@ -155,6 +157,7 @@ impl StationConfig {
             wait_for_followers_above: s.planner.wait_for_followers_above,
             telemetry_timeout_ms: s.follower.leader_timeout_ms,
             follower_speed: 0.8 * s.robot.max_speed,
+            follower_accel: 0.5 * s.robot.max_accel,
             period_ms: 100,
         }
     }
@@ -451,8 +454,12 @@ impl BaseStation {
         }
 
         let half_width = self.formation.half_width();
-        self.planner
-            .set_formation(self.formation.reach(), self.cfg.follower_speed);
+        // Only the wide slots swing round the leader; the line follows its trail.
+        self.planner.set_formation(
+            self.formation.wide_reach() * (1.0 - blend),
+            self.cfg.follower_speed,
+            self.cfg.follower_accel,
+        );
         if !self.ready {
             // Leave only with the whole fleet: every follower linked, reporting and
             // following (not idle, not failsafe). Until then the leader holds.

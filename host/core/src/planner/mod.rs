@@ -144,6 +144,9 @@ pub struct Planner {
     inflation: f64,
     /// (farthest slot distance, followers' usable speed), when a formation follows.
     formation: Option<(f64, f64)>,
+    /// The turn rate last commanded, and how fast it may change (rad/s²).
+    omega: f64,
+    turn_accel: f64,
     routing: Option<Box<Routing>>,
 }
 
@@ -195,6 +198,8 @@ impl Planner {
             escapes: 0,
             inflation: 0.0,
             formation: None,
+            omega: 0.0,
+            turn_accel: f64::INFINITY,
             routing: None,
         }
     }
@@ -260,8 +265,23 @@ impl Planner {
     /// followers can drive: the turn rate is then capped so that the farthest slot point,
     /// swung around the leader (ω·L across the leader's speed v), never needs more than
     /// that speed: ω ≤ √(v_f² − v²) / L.
-    pub fn set_formation(&mut self, reach: f64, follower_speed: f64) {
+    /// `follower_accel` bounds the turn rate's change the same way: the farthest slot
+    /// point, swung at ω, accelerates at L·dω/dt, which the followers must match.
+    pub fn set_formation(&mut self, reach: f64, follower_speed: f64, follower_accel: f64) {
         self.formation = (reach > 0.0).then_some((reach, follower_speed));
+        self.turn_accel = if reach > 0.0 {
+            follower_accel / reach
+        } else {
+            f64::INFINITY
+        };
+    }
+
+    /// ω toward `target`, within the turn-rate limit and the turn-acceleration limit.
+    fn turn_toward(&mut self, target: f64, dt: f64) -> f64 {
+        let turn = self.turn_limit();
+        let step = self.turn_accel * dt;
+        self.omega = (self.omega + (target - self.omega).clamp(-step, step)).clamp(-turn, turn);
+        self.omega
     }
 
     /// The turn-rate limit now.
@@ -398,8 +418,7 @@ impl Planner {
         } else {
             wrap(direction.y.atan2(direction.x) - pose.heading)
         };
-        let turn = self.turn_limit();
-        let omega = (p.heading_gain * err).clamp(-turn, turn);
+        let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
         let target = p.max_speed * strength * align * align * speed_scale.clamp(0.0, 1.0);
         self.v += (target - self.v).clamp(-p.max_accel * dt, p.max_accel * dt);
@@ -488,7 +507,6 @@ impl Planner {
         }
         let window = p.stuck_window_s;
         self.prepare(now_s, pos, map);
-        let turn = self.turn_limit();
         let Some(routing) = self.routing.as_mut() else {
             return hold(self, Mode::NoRoute);
         };
@@ -569,10 +587,10 @@ impl Planner {
         } else {
             wrap(direction.y.atan2(direction.x) - pose.heading)
         };
-        let omega = (p.heading_gain * err).clamp(-turn, turn);
-        let align = err.cos().max(0.0);
         // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
         let to_end = (end - s).max((route.point_at(end) - pos).length());
+        let omega = self.turn_toward(p.heading_gain * err, dt);
+        let align = err.cos().max(0.0);
         let braking = (p.max_accel * to_end).sqrt();
         let target = (p.max_speed * align * align * speed_scale.clamp(0.0, 1.0)).min(braking);
         self.v += (target - self.v).clamp(-p.max_accel * dt, p.max_accel * dt);
