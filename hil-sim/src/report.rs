@@ -171,8 +171,8 @@ pub fn build_report(
         .map(|t| {
             let end = t.start_s
                 + scenario
-                    .formation
-                    .transition_s
+                    .formation_spec()
+                    .transition_duration()
                     .max(t.duration_s.unwrap_or(0.0));
             (t.start_s, end + 3.0)
         })

@@ -41,7 +41,7 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
         &world.recorder,
         world.station.formation().transformations(),
         s.wide_name(),
-        s.formation.transition_s,
+        s.formation_spec().transition_duration(),
     );
     let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
     let facts = RunFacts {

@@ -22,7 +22,8 @@
 //!   followers' slot points move up to 1.9 m relative to the leader, and the followers'
 //!   speed is bounded.
 //! - **Smooth**: the blend (0 wide … 1 line) follows a smoothstep over `transition_s`, so
-//!   the followers' slot points never jump.
+//!   the followers' slot points never jump; longer when a slot moves far, so that none
+//!   moves faster than a follower can drive (`transition_duration`).
 
 use glam::DVec2;
 
@@ -46,10 +47,13 @@ pub struct FormationSpec {
     pub line_spacing: f64,
     /// Extra free width demanded beside the formation, m.
     pub margin: f64,
+    /// The shortest shape change, s; longer when a slot moves far (see `transition_s()`).
     pub transition_s: f64,
     pub min_dwell_s: f64,
     pub lookahead: f64,
     pub footprint: f64,
+    /// The speed a follower can use to reach a moving slot, m/s.
+    pub slot_speed: f64,
 }
 
 /// Which shape the formation is in or heading to.
@@ -105,6 +109,20 @@ impl FormationSpec {
             .collect()
     }
 
+    /// How long a shape change takes: `transition_s`, or longer so that no slot point
+    /// moves faster than `slot_speed` (a smoothstep peaks at 1.5× its mean rate): a
+    /// 7-follower V's rear slots move 6 m into the line.
+    pub fn transition_duration(&self) -> f64 {
+        let point = |(l, phi): (f64, f64)| DVec2::new(l * phi.cos(), l * phi.sin());
+        let far = self
+            .wide_slots()
+            .into_iter()
+            .zip(self.line_slots())
+            .map(|(w, l)| (point(w) - point(l)).length())
+            .fold(0.0, f64::max);
+        self.transition_s.max(1.5 * far / self.slot_speed.max(1e-3))
+    }
+
     /// Lateral extent of the wide formation including footprints, m.
     pub fn wide_width(&self) -> f64 {
         let lateral = |slots: Vec<(f64, f64)>| {
@@ -120,6 +138,8 @@ impl FormationSpec {
 #[derive(Debug, Clone)]
 pub struct FormationManager {
     spec: FormationSpec,
+    /// The duration of a shape change, s.
+    duration: f64,
     wide: Vec<(f64, f64)>,
     line: Vec<(f64, f64)>,
     target: Target,
@@ -150,6 +170,7 @@ fn smoothstep(x: f64) -> f64 {
 impl FormationManager {
     pub fn new(spec: FormationSpec) -> Self {
         Self {
+            duration: spec.transition_duration(),
             wide: spec.wide_slots(),
             line: spec.line_slots(),
             spec,
@@ -264,7 +285,7 @@ impl FormationManager {
         let settling = self
             .events
             .last()
-            .is_some_and(|e| now_s < e.start_s + self.spec.transition_s + SETTLE_S);
+            .is_some_and(|e| now_s < e.start_s + self.duration + SETTLE_S);
         if settling {
             TRANSFORM_SPEED
         } else {
@@ -318,7 +339,7 @@ impl FormationManager {
                 Target::Wide => 0.0,
                 Target::Line => 1.0,
             };
-            let s = smoothstep((now_s - t0) / self.spec.transition_s);
+            let s = smoothstep((now_s - t0) / self.duration);
             self.blend = self.from_blend + (end - self.from_blend) * s;
             if s >= 1.0 {
                 self.transition_start = None;

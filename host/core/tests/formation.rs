@@ -19,6 +19,7 @@ fn spec() -> FormationSpec {
         min_dwell_s: 2.0,
         lookahead: 5.0,
         footprint: 0.3,
+        slot_speed: 0.8,
     }
 }
 

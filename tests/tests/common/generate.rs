@@ -55,8 +55,10 @@ impl Builder {
             .iter()
             .map(|p| format!("[{:.3}, {:.3}]", p[0], p[1]))
             .collect();
-        self.obstacles
-            .push(format!("{{ kind = \"polygon\", points = [{}] }}", p.join(", ")));
+        self.obstacles.push(format!(
+            "{{ kind = \"polygon\", points = [{}] }}",
+            p.join(", ")
+        ));
     }
 
     /// The leader at `leader` heading `deg`; `followers` V slots behind it (or `starts`).
@@ -71,6 +73,20 @@ impl Builder {
             let x = leader[0] + rank * 3.0 * a.cos() - 0.2 * h.cos();
             let y = leader[1] + rank * 3.0 * a.sin() - 0.2 * h.sin();
             self.robots.push((x, y, deg));
+        }
+        if followers > 2 {
+            self.shape = "v";
+        }
+    }
+
+    /// The leader at `leader` heading `deg`, `followers` in a line 1.5 m apart behind it.
+    fn fleet_in_line(&mut self, leader: [f64; 2], deg: f64, followers: usize) {
+        self.robots.push((leader[0], leader[1], deg));
+        let h = deg.to_radians();
+        for k in 1..=followers {
+            let back = 1.5 * k as f64 + 0.2;
+            self.robots
+                .push((leader[0] - back * h.cos(), leader[1] - back * h.sin(), deg));
         }
         if followers > 2 {
             self.shape = "v";
@@ -148,7 +164,8 @@ pub fn bin_field(seed: u64, bins: usize, followers: usize) -> Generated {
         let c = [r.random_range(0.0..50.0), r.random_range(0.0..30.0)];
         let rad = r.random_range(0.3..0.6);
         // Keep a 2.2 m half-corridor free (the line passes; the V sometimes), and the starts.
-        if dist_to_way(c) < 2.2 + rad || (c[0] - start[0]).abs() < 8.0 && (c[1] - start[1]).abs() < 5.0
+        if dist_to_way(c) < 2.2 + rad
+            || (c[0] - start[0]).abs() < 8.0 && (c[1] - start[1]).abs() < 5.0
         {
             continue;
         }
@@ -169,7 +186,12 @@ pub fn street(seed: u64, followers: usize) -> Generated {
     let mut heading: f64 = 0.0;
     let legs = r.random_range(3..=4);
     for _ in 0..legs {
-        let len = r.random_range(14.0..20.0);
+        let extra = if pts.len() == 1 {
+            1.5 * followers as f64
+        } else {
+            0.0
+        };
+        let len = r.random_range(14.0..20.0) + extra;
         let p = *pts.last().unwrap() + glam::DVec2::new(heading.cos(), heading.sin()) * len;
         pts.push(p);
         let turn: f64 = r.random_range(20.0f64..45.0).to_radians();
@@ -182,8 +204,16 @@ pub fn street(seed: u64, followers: usize) -> Generated {
     });
     // Walls: each leg's two sides as quadrilaterals 1 m thick, mitred at the joints.
     let normal_at = |i: usize| -> glam::DVec2 {
-        let d_in = if i > 0 { (pts[i] - pts[i - 1]).normalize() } else { (pts[1] - pts[0]).normalize() };
-        let d_out = if i + 1 < pts.len() { (pts[i + 1] - pts[i]).normalize() } else { d_in };
+        let d_in = if i > 0 {
+            (pts[i] - pts[i - 1]).normalize()
+        } else {
+            (pts[1] - pts[0]).normalize()
+        };
+        let d_out = if i + 1 < pts.len() {
+            (pts[i + 1] - pts[i]).normalize()
+        } else {
+            d_in
+        };
         let n = (d_in + d_out).normalize().perp();
         n / n.dot(d_in.perp()).max(0.5)
     };
@@ -202,7 +232,12 @@ pub fn street(seed: u64, followers: usize) -> Generated {
         let n = normal_at(i);
         let a = pts[i] + n * (half + 1.0) + d * 0.2;
         let c = pts[i] - n * (half + 1.0) + d * 0.2;
-        b.polygon(&[[a.x, a.y], [c.x, c.y], [(c + d).x, (c + d).y], [(a + d).x, (a + d).y]]);
+        b.polygon(&[
+            [a.x, a.y],
+            [c.x, c.y],
+            [(c + d).x, (c + d).y],
+            [(a + d).x, (a + d).y],
+        ]);
     }
     // Pinches: on straight stretches, blocks from both walls leaving 2.4–3.5 m.
     let pinches = r.random_range(1..=3);
@@ -227,9 +262,14 @@ pub fn street(seed: u64, followers: usize) -> Generated {
             ]);
         }
     }
-    let start = pts[0] + (pts[1] - pts[0]).normalize() * 5.0;
+    let start = pts[0] + (pts[1] - pts[0]).normalize() * (5.0 + 1.5 * followers as f64);
     let deg = (pts[1] - pts[0]).y.atan2((pts[1] - pts[0]).x).to_degrees();
-    b.fleet([start.x, start.y], deg, followers);
+    if followers > 2 {
+        // A V this wide does not fit the street: the fleet starts in its line.
+        b.fleet_in_line([start.x, start.y], deg, followers);
+    } else {
+        b.fleet([start.x, start.y], deg, followers);
+    }
     b.build(&format!("street-{followers}f-seed{seed}"), true)
 }
 
@@ -237,7 +277,10 @@ pub fn street(seed: u64, followers: usize) -> Generated {
 pub fn bin_on_the_line(seed: u64) -> Generated {
     let mut r = rng(3, seed);
     let mut b = Builder::new([40.0, r.random_range(-1.0..1.0)]);
-    b.circle([r.random_range(5.0..8.0), r.random_range(-0.3..0.3)], r.random_range(0.3..0.6));
+    b.circle(
+        [r.random_range(5.0..8.0), r.random_range(-0.3..0.3)],
+        r.random_range(0.3..0.6),
+    );
     b.fleet([2.0, 0.0], 0.0, 2);
     b.build(&format!("bin-on-the-line-seed{seed}"), true)
 }

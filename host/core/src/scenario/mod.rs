@@ -664,6 +664,7 @@ impl Scenario {
             min_dwell_s: f.min_dwell_s,
             lookahead: f.lookahead,
             footprint: self.robot.footprint_radius,
+            slot_speed: 0.8 * self.robot.max_speed,
         }
     }
 
