@@ -52,12 +52,12 @@ fn bad_files_name_file_line_and_field() {
         (
             "type.toml",
             GOOD.replacen("radius = 0.5", "radius = \"big\"", 1),
-            "type.toml:7:54: field `map.obstacles[0].radius`: invalid type: string \"big\", expected f64",
+            "type.toml:9:54: field `map.obstacles[0].radius`: invalid type: string \"big\", expected f64",
         ),
         (
             "negative.toml",
             GOOD.replacen("radius = 0.5", "radius = -1.0", 1),
-            "negative.toml:7:54: field `map.obstacles[0].radius`: must be a finite number > 0",
+            "negative.toml:9:54: field `map.obstacles[0].radius`: must be a finite number > 0",
         ),
         (
             "unknown.toml",
@@ -67,7 +67,7 @@ fn bad_files_name_file_line_and_field() {
         (
             "role.toml",
             GOOD.replacen("role = \"follower\"", "role = \"folower\"", 1),
-            "role.toml:21:8: field `robots[1].role`: unknown variant `folower`",
+            "role.toml:23:8: field `robots[1].role`: unknown variant `folower`",
         ),
         (
             "two-leaders.toml",
@@ -77,7 +77,7 @@ fn bad_files_name_file_line_and_field() {
         (
             "goal.toml",
             GOOD.replace("goal = [20.0, 20.0]", "goal = [4.5, 5.0]"),
-            "goal.toml:36:8: field `route.goal`: the point is inside or too close to an obstacle",
+            "goal.toml:38:8: field `route.goal`: the point is inside or too close to an obstacle",
         ),
         (
             "missing.toml",

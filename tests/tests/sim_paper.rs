@@ -77,7 +77,7 @@ fn five_followers_in_a_v_reach_the_goal_without_contact() {
     let mut s = shipped("paper-obstacles");
     s.formation.shape = base_station::scenario::ShapeName::V;
     let template = s.robots[2].clone();
-    for (id, (x, y)) in [(3u16, (-6.0, -2.0)), (4, (-3.0, -6.0)), (5, (-8.0, -5.0))] {
+    for (id, (x, y)) in [(3u16, (-6.0, -2.0)), (4, (-3.0, -6.0)), (5, (-7.0, -5.0))] {
         let mut r = template.clone();
         r.id = id;
         r.start.x = x;

@@ -341,7 +341,7 @@ pub fn no_way(seed: u64) -> Generated {
     let mut r = rng(7, seed);
     let mut b = Builder::new([30.0, r.random_range(-5.0..5.0)]);
     b.bounds = Some(([-10.0, -15.0], [45.0, 15.0]));
-    if seed % 2 == 0 {
+    if seed.is_multiple_of(2) {
         let g = b.goal;
         b.rect([g[0] - 3.0, g[1] - 3.0], [g[0] + 3.0, g[1] - 2.5]);
         b.rect([g[0] - 3.0, g[1] + 2.5], [g[0] + 3.0, g[1] + 3.0]);

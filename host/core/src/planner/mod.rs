@@ -254,7 +254,11 @@ impl Planner {
             pts.extend(route.sample(s + step, length - step, step));
             return pts;
         }
+        // Straight ahead, no farther than the goal.
         let dir = DVec2::new(pose.heading.cos(), pose.heading.sin());
+        let length = self
+            .goal()
+            .map_or(length, |g| length.min((g - pose.position).length()));
         let n = (length / step).ceil() as usize;
         (0..=n)
             .map(|i| pose.position + dir * (i as f64 * step))
