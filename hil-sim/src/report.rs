@@ -166,14 +166,11 @@ pub fn build_report(
         .map(|s| s.t);
     // A transformation is busy from its start until the slots are shaped and the
     // followers back (or the blend's end if they never came back), plus 3 s.
+    let transition = scenario.formation_spec().transition_duration();
     let busy: Vec<(f64, f64)> = transformations
         .iter()
         .map(|t| {
-            let end = t.start_s
-                + scenario
-                    .formation_spec()
-                    .transition_duration()
-                    .max(t.duration_s.unwrap_or(0.0));
+            let end = t.start_s + transition.max(t.duration_s.unwrap_or(0.0));
             (t.start_s, end + 3.0)
         })
         .collect();
@@ -193,10 +190,7 @@ pub fn build_report(
             let n = moving.len().max(1) as f64;
             let mut report = RobotReport {
                 id: *id,
-                role: match role {
-                    Role::Leader => "leader".into(),
-                    Role::Follower => "follower".into(),
-                },
+                role: role.name().into(),
                 avg_speed_mps: moving.iter().map(|r| r.v.abs()).sum::<f64>() / n,
                 avg_abs_omega_radps: moving.iter().map(|r| r.omega.abs()).sum::<f64>() / n,
                 max_tracking_error_m: None,

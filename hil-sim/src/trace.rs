@@ -38,10 +38,7 @@ pub fn write_csv<W: Write>(rec: &Recorder, roles: &[(u16, Role)], out: W) -> csv
             w.serialize(Row {
                 t: s.t,
                 id: *id,
-                role: match role {
-                    Role::Leader => "leader",
-                    Role::Follower => "follower",
-                },
+                role: role.name(),
                 x: r.x,
                 y: r.y,
                 heading: r.heading,

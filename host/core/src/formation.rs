@@ -47,7 +47,7 @@ pub struct FormationSpec {
     pub line_spacing: f64,
     /// Extra free width demanded beside the formation, m.
     pub margin: f64,
-    /// The shortest shape change, s; longer when a slot moves far (see `transition_s()`).
+    /// The shortest shape change, s; longer when a slot moves far (see `transition_duration()`).
     pub transition_s: f64,
     pub min_dwell_s: f64,
     pub lookahead: f64,
@@ -230,13 +230,6 @@ impl FormationManager {
     /// The distance of the last line slot from the leader, m.
     pub fn line_reach(&self) -> f64 {
         self.line.iter().map(|s| s.0).fold(0.0, f64::max)
-    }
-
-    /// The distance of the farthest slot from the leader at the current blend, m.
-    pub fn reach(&self) -> f64 {
-        (0..self.spec.followers)
-            .map(|k| self.slot(k).0)
-            .fold(0.0, f64::max)
     }
 
     /// The slot points in the world for a leader pose.

@@ -163,14 +163,6 @@ impl StationConfig {
     }
 }
 
-impl StationConfig {
-    /// The route planner's parameters for this fleet.
-    pub fn route_params(&self) -> RouteParams {
-        let f = &self.formation;
-        RouteParams::for_fleet(f.footprint, f.wide_width(), f.margin)
-    }
-}
-
 impl BaseStation {
     /// `session`: fresh at every start (random); `nonce_base`: random.
     pub fn new(cfg: StationConfig, key: FleetKey, session: u32, nonce_base: u64) -> Self {
@@ -192,7 +184,11 @@ impl BaseStation {
                 cfg.planner,
                 cfg.route.clone(),
                 cfg.initial_speed,
-                RoutePlanner::new(&cfg.map, &cfg.route, cfg.route_params()),
+                RoutePlanner::new(
+                    &cfg.map,
+                    &cfg.route,
+                    RouteParams::for_formation(&cfg.formation),
+                ),
             ),
         };
         let formation = FormationManager::new(cfg.formation.clone());

@@ -1,6 +1,5 @@
 //! `basestation check SCENARIO`: validate a file and print what it describes.
 
-use base_station::scenario::Role;
 use clap::Args;
 
 #[derive(Args, Debug)]
@@ -15,10 +14,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     println!("scenario    {} — {}", s.name, s.description.trim());
     println!("map         {} obstacles", s.map.obstacles.len());
     for r in &s.robots {
-        let role = match r.role {
-            Role::Leader => "leader",
-            Role::Follower => "follower",
-        };
+        let role = r.role.name();
         println!(
             "robot {:<5} {role:<8} start ({:.2}, {:.2}) heading {:.0}°",
             r.id, r.start.x, r.start.y, r.start.heading_deg

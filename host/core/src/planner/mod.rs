@@ -572,11 +572,7 @@ impl Planner {
         let tangent = route.tangent_at(s);
         let to_carrot = carrot - pos;
         let attraction = to_carrot.normalize_or_zero() * p.apf.k_a;
-        let a = ApfParams {
-            footprint: p.apf.footprint,
-            ..p.apf
-        };
-        let mut repulsion = apf::repulsion(pos, map, &a);
+        let mut repulsion = apf::repulsion(pos, map, &p.apf);
         let back = repulsion.dot(tangent);
         if back < 0.0 {
             repulsion -= tangent * back;
@@ -591,10 +587,10 @@ impl Planner {
         } else {
             wrap(direction.y.atan2(direction.x) - pose.heading)
         };
-        // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
         let to_end = (end - s).max((route.point_at(end) - pos).length());
         let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
+        // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
         let braking = (p.max_accel * to_end).sqrt();
         let target = (p.max_speed * align * align * speed_scale.clamp(0.0, 1.0)).min(braking);
         self.v += (target - self.v).clamp(-p.max_accel * dt, p.max_accel * dt);

@@ -27,6 +27,7 @@ use std::collections::BinaryHeap;
 
 use glam::DVec2;
 
+use crate::formation::FormationSpec;
 use crate::map::Map;
 
 /// Most cells of a grid; larger sites get coarser cells.
@@ -54,6 +55,15 @@ pub struct RouteParams {
 }
 
 impl RouteParams {
+    /// For the robots and the wide shape of `formation`.
+    pub fn for_formation(formation: &FormationSpec) -> Self {
+        Self::for_fleet(
+            formation.footprint,
+            formation.wide_width(),
+            formation.margin,
+        )
+    }
+
     /// For a robot of `footprint` radius and a wide formation of `wide_width` (footprints
     /// included) needing `margin` beside it.
     pub fn for_fleet(footprint: f64, wide_width: f64, margin: f64) -> Self {
@@ -549,8 +559,7 @@ mod tests {
         ])
     }
 
-    fn min_clearance(planner: &RoutePlanner, route: &Route, map: &Map) -> f64 {
-        let _ = planner;
+    fn min_clearance(route: &Route, map: &Map) -> f64 {
         route
             .sample(0.0, route.length(), 0.02)
             .iter()
@@ -570,7 +579,7 @@ mod tests {
             .plan(DVec2::new(0.0, 0.0), DVec2::new(20.0, 0.0), &[])
             .expect("the 0.8 m gap is the way");
         assert!(route.length() < 21.0, "went round: {}", route.length());
-        let c = min_clearance(&rp, &route, &map);
+        let c = min_clearance(&route, &map);
         assert!(c >= 0.3, "the route touches: clearance {c}");
     }
 

@@ -318,6 +318,16 @@ pub enum Role {
     Follower,
 }
 
+impl Role {
+    /// As in scenario files and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Leader => "leader",
+            Role::Follower => "follower",
+        }
+    }
+}
+
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct RobotEntry {

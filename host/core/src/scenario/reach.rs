@@ -9,8 +9,7 @@ use crate::planner::route::{RouteParams, RoutePlanner};
 impl Scenario {
     /// The route planner this scenario's fleet uses.
     pub fn route_planner(&self) -> RoutePlanner {
-        let f = self.formation_spec();
-        let params = RouteParams::for_fleet(f.footprint, f.wide_width(), f.margin);
+        let params = RouteParams::for_formation(&self.formation_spec());
         let start = self.leader().start;
         let mut points = self.route.points();
         points.push(DVec2::new(start.x, start.y));
