@@ -18,12 +18,12 @@ use serde::Serialize;
 
 use crate::plant::Body;
 
-/// A robot as the recorder sees it.
-#[derive(Debug, Clone, Copy)]
-pub struct Tracked<'a> {
-    pub id: u16,
-    pub role: Role,
-    pub body: &'a Body,
+/// A robot as the recorder sees it: who it is and its body (the world's robots implement
+/// it, so the recorder reads them where they are, at every physics step).
+pub trait Tracked {
+    fn id(&self) -> u16;
+    fn role(&self) -> Role;
+    fn body(&self) -> &Body;
 }
 
 /// One robot at one sample.
@@ -148,12 +148,18 @@ impl Recorder {
     }
 
     /// Called after every physics step. `map`: everything a robot can touch.
-    pub fn observe(&mut self, t_us: u64, robots: &[Tracked<'_>], map: &Map, station: &BaseStation) {
+    pub fn observe<R: Tracked>(
+        &mut self,
+        t_us: u64,
+        robots: &[R],
+        map: &Map,
+        station: &BaseStation,
+    ) {
         let fp = self.footprint;
         let reach = self.r_det + fp;
         let mut near = false;
         for (i, r) in robots.iter().enumerate() {
-            let p = DVec2::new(r.body.x, r.body.y);
+            let p = DVec2::new(r.body().x, r.body().y);
             let Some(surface) = map.nearest(p, reach) else {
                 self.contact((i, OBSTACLE), false);
                 continue;
@@ -165,10 +171,10 @@ impl Recorder {
         }
         // Robot pairs: a sort along x bounds the work (fleets here are small or spread).
         let mut order: Vec<usize> = (0..robots.len()).collect();
-        order.sort_by(|a, b| robots[*a].body.x.total_cmp(&robots[*b].body.x));
+        order.sort_by(|a, b| robots[*a].body().x.total_cmp(&robots[*b].body().x));
         for (k, &i) in order.iter().enumerate() {
             for &j in &order[k + 1..] {
-                let (a, b) = (robots[i].body, robots[j].body);
+                let (a, b) = (robots[i].body(), robots[j].body());
                 if b.x - a.x > 2.0 * fp + 1.0 {
                     break;
                 }
@@ -179,8 +185,8 @@ impl Recorder {
         }
         let leader = robots
             .iter()
-            .find(|r| r.role == Role::Leader)
-            .map(|r| r.body);
+            .find(|r| r.role() == Role::Leader)
+            .map(|r| r.body());
         if let Some(l) = leader {
             self.path.record(DVec2::new(l.x, l.y));
         }
@@ -190,10 +196,10 @@ impl Recorder {
         self.sample(t_us, robots, leader, station, near);
     }
 
-    fn sample(
+    fn sample<R: Tracked>(
         &mut self,
         t_us: u64,
-        robots: &[Tracked<'_>],
+        robots: &[R],
         leader: Option<&Body>,
         station: &BaseStation,
         near_obstacle: bool,
@@ -203,8 +209,8 @@ impl Recorder {
         // Slot k belongs to the follower with the k-th smallest id (the station's order).
         let mut ids: Vec<u16> = robots
             .iter()
-            .filter(|r| r.role == Role::Follower)
-            .map(|r| r.id)
+            .filter(|r| r.role() == Role::Follower)
+            .map(|r| r.id())
             .collect();
         ids.sort();
         let reference = |id: u16| -> Option<DVec2> {
@@ -224,23 +230,23 @@ impl Recorder {
         let robots = robots
             .iter()
             .map(|r| {
-                let (v, omega) = r.body.twist();
-                let slot = (r.role == Role::Follower)
-                    .then(|| reference(r.id))
+                let (v, omega) = r.body().twist();
+                let slot = (r.role() == Role::Follower)
+                    .then(|| reference(r.id()))
                     .flatten();
                 let error = slot.map(|s| {
-                    let (cx, cy) = r.body.ahead(self.d);
+                    let (cx, cy) = r.body().ahead(self.d);
                     (DVec2::new(cx, cy) - s).length()
                 });
                 let mode = station
                     .robots()
-                    .get(&r.id)
+                    .get(&r.id())
                     .and_then(|s| s.telemetry)
                     .map(|t| mode_name(t.mode));
                 RobotSample {
-                    x: r.body.x,
-                    y: r.body.y,
-                    heading: r.body.heading,
+                    x: r.body().x,
+                    y: r.body().y,
+                    heading: r.body().heading,
                     v,
                     omega,
                     slot: slot.map(|s| (s.x, s.y)),

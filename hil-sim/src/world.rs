@@ -132,6 +132,18 @@ pub struct SimRobot {
     pub boot_count: u32,
 }
 
+impl Tracked for SimRobot {
+    fn id(&self) -> u16 {
+        self.id
+    }
+    fn role(&self) -> Role {
+        self.role
+    }
+    fn body(&self) -> &Body {
+        &self.body
+    }
+}
+
 pub struct World {
     pub scenario: Scenario,
     pub map: Map,
@@ -524,17 +536,8 @@ impl World {
         if self.goal_at_us.is_none() && self.station.planner().arrived() {
             self.goal_at_us = Some(self.t_us);
         }
-        let tracked: Vec<Tracked<'_>> = self
-            .robots
-            .iter()
-            .map(|r| Tracked {
-                id: r.id,
-                role: r.role,
-                body: &r.body,
-            })
-            .collect();
         self.recorder
-            .observe(self.t_us, &tracked, &self.map, &self.station);
+            .observe(self.t_us, &self.robots, &self.map, &self.station);
         Ok(())
     }
 
