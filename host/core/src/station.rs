@@ -15,7 +15,7 @@ use protocol::{units, Address, FleetKey, FrameDecoder, Reject, RejectCounts, MAX
 
 use crate::formation::{FormationManager, FormationSpec, Target};
 use crate::map::Map;
-use crate::planner::route::{RouteParams, RoutePlanner};
+use crate::planner::route::RouteParams;
 use crate::planner::{Guidance, PlanPose, Planner, PlannerParams};
 
 /// Most robots one base station serves.
@@ -184,11 +184,7 @@ impl BaseStation {
                 cfg.planner,
                 cfg.route.clone(),
                 cfg.initial_speed,
-                RoutePlanner::new(
-                    &cfg.map,
-                    &cfg.route,
-                    RouteParams::for_formation(&cfg.formation),
-                ),
+                RouteParams::for_formation(&cfg.formation),
             ),
         };
         let formation = FormationManager::new(cfg.formation.clone());

@@ -47,7 +47,7 @@ use glam::DVec2;
 
 use crate::map::Map;
 use apf::ApfParams;
-use route::{NoRoute, Route, RoutePlanner};
+use route::{NoRoute, Route, RouteParams, RoutePlanner};
 
 /// How the leader finds its way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -153,7 +153,9 @@ pub struct Planner {
 /// The route layer's state.
 #[derive(Debug, Clone)]
 struct Routing {
-    planner: RoutePlanner,
+    params: RouteParams,
+    /// Built at the first plan, when the leader's position is known.
+    planner: Option<RoutePlanner>,
     route: Option<Route>,
     /// Arc length of each remaining waypoint on the route.
     waypoint_arc: Vec<f64>,
@@ -204,17 +206,18 @@ impl Planner {
         }
     }
 
-    /// A planner that follows a route planned on the site map by `router`.
+    /// A planner that follows a route planned on the site map with `router`'s parameters.
     pub fn routed(
         params: PlannerParams,
         route: Vec<DVec2>,
         initial_speed: f64,
-        router: RoutePlanner,
+        router: RouteParams,
     ) -> Self {
         let mut p = Self::new(params, route, initial_speed);
         p.mode = Mode::Route;
         p.routing = Some(Box::new(Routing {
-            planner: router,
+            params: router,
+            planner: None,
             route: None,
             waypoint_arc: Vec::new(),
             s: 0.0,
@@ -447,25 +450,34 @@ impl Planner {
         }
     }
 
-    /// Plans the route from `from` through the remaining waypoints (the grid grows to
-    /// cover `from` if the leader stands outside it).
+    /// Plans the route from `from` through the remaining waypoints. The grid covers the
+    /// waypoints, and `from` too when the leader stands outside that (or outside the grid
+    /// it has).
     fn plan_route(&mut self, from: DVec2, now_s: f64, map: &Map) {
         let waypoints: Vec<DVec2> = self.route[self.next..].to_vec();
         let Some(routing) = self.routing.as_mut() else {
             return;
         };
         routing.last_attempt_s = now_s;
-        if !routing.planner.covers(from) {
+        if !routing.planner.as_ref().is_some_and(|p| p.covers(from)) {
             let mut points = waypoints.clone();
-            points.push(from);
-            routing.planner = RoutePlanner::new(map, &points, routing.planner.params);
+            let margin = 0.5 * routing.params.border;
+            if routing.planner.is_some()
+                || !RoutePlanner::extent(map, &points, &routing.params).covers(from, margin)
+            {
+                points.push(from);
+            }
+            routing.planner = Some(RoutePlanner::new(map, &points, routing.params));
         }
+        let Some(planner) = routing.planner.as_ref() else {
+            return;
+        };
         let mut points = vec![from];
         let mut arcs = Vec::new();
         let mut length = 0.0;
         for w in waypoints {
             let start = *points.last().expect("starts with `from`");
-            match routing.planner.plan(start, w, &routing.blocked) {
+            match planner.plan(start, w, &routing.blocked) {
                 Ok(leg) => {
                     length += leg.length();
                     points.extend(leg.points.into_iter().skip(1));

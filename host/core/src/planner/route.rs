@@ -82,6 +82,39 @@ impl RouteParams {
     }
 }
 
+/// Where a grid lies: its first cell centre, its cell size and its cells along x and y.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extent {
+    origin: DVec2,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+}
+
+impl Extent {
+    /// Over `[lo, hi]` with cells of at least `cell` (coarser if the area needs more than
+    /// `MAX_CELLS`).
+    pub fn new(lo: DVec2, hi: DVec2, cell: f64) -> Self {
+        let size = (hi - lo).max(DVec2::splat(cell));
+        let cell = cell.max((size.x * size.y / MAX_CELLS as f64).sqrt());
+        Self {
+            origin: lo,
+            cell,
+            nx: (size.x / cell).ceil() as usize + 1,
+            ny: (size.y / cell).ceil() as usize + 1,
+        }
+    }
+
+    /// Whether `p` lies at least `margin` inside.
+    pub fn covers(&self, p: DVec2, margin: f64) -> bool {
+        let hi = self.origin + DVec2::new((self.nx - 1) as f64, (self.ny - 1) as f64) * self.cell;
+        p.x >= self.origin.x + margin
+            && p.y >= self.origin.y + margin
+            && p.x <= hi.x - margin
+            && p.y <= hi.y - margin
+    }
+}
+
 /// The distance from each cell centre to the nearest obstacle surface (0 inside), capped.
 #[derive(Debug, Clone)]
 pub struct ClearanceGrid {
@@ -94,13 +127,14 @@ pub struct ClearanceGrid {
 }
 
 impl ClearanceGrid {
-    /// The grid over `[lo, hi]` with cells of at least `cell` (coarser if the area needs
-    /// more than `MAX_CELLS`), clearances exact at the centres up to `cap`.
-    pub fn build(map: &Map, lo: DVec2, hi: DVec2, cell: f64, cap: f64) -> Self {
-        let size = (hi - lo).max(DVec2::splat(cell));
-        let cell = cell.max((size.x * size.y / MAX_CELLS as f64).sqrt());
-        let nx = (size.x / cell).ceil() as usize + 1;
-        let ny = (size.y / cell).ceil() as usize + 1;
+    /// The grid over `extent`, clearances exact at the centres up to `cap`.
+    pub fn build(map: &Map, extent: Extent, cap: f64) -> Self {
+        let Extent {
+            origin: lo,
+            cell,
+            nx,
+            ny,
+        } = extent;
         let mut clear = vec![cap as f32; nx * ny];
         for o in map.obstacles() {
             let [blo, bhi] = o.bounds();
@@ -127,6 +161,15 @@ impl ClearanceGrid {
             ny,
             cap: cap as f32,
             clear,
+        }
+    }
+
+    pub fn extent(&self) -> Extent {
+        Extent {
+            origin: self.origin,
+            cell: self.cell,
+            nx: self.nx,
+            ny: self.ny,
         }
     }
 
@@ -305,6 +348,14 @@ impl RoutePlanner {
     /// A planner over `map`, its grid covering the obstacles and `points` (starts,
     /// waypoints) with `params.border` around.
     pub fn new(map: &Map, points: &[DVec2], params: RouteParams) -> Self {
+        let cap = params.soft_clearance.max(params.wide_clearance) + params.cell;
+        let grid = ClearanceGrid::build(map, Self::extent(map, points, &params), cap);
+        Self { params, grid }
+    }
+
+    /// The grid [`RoutePlanner::new`] would build for `map` and `points` (cheap: bounds
+    /// only).
+    pub fn extent(map: &Map, points: &[DVec2], params: &RouteParams) -> Extent {
         let mut lo = DVec2::splat(f64::INFINITY);
         let mut hi = DVec2::splat(f64::NEG_INFINITY);
         for p in points {
@@ -321,9 +372,7 @@ impl RoutePlanner {
             hi = DVec2::ZERO;
         }
         let border = DVec2::splat(params.border);
-        let cap = params.soft_clearance.max(params.wide_clearance) + params.cell;
-        let grid = ClearanceGrid::build(map, lo - border, hi + border, params.cell, cap);
-        Self { params, grid }
+        Extent::new(lo - border, hi + border, params.cell)
     }
 
     pub fn grid(&self) -> &ClearanceGrid {
@@ -332,13 +381,7 @@ impl RoutePlanner {
 
     /// Whether the grid covers `p` with a border of a few metres.
     pub fn covers(&self, p: DVec2) -> bool {
-        let g = &self.grid;
-        let margin = 0.5 * self.params.border;
-        let hi = g.origin + DVec2::new((g.nx - 1) as f64, (g.ny - 1) as f64) * g.cell;
-        p.x >= g.origin.x + margin
-            && p.y >= g.origin.y + margin
-            && p.x <= hi.x - margin
-            && p.y <= hi.y - margin
+        self.grid.extent().covers(p, 0.5 * self.params.border)
     }
 
     /// Clearance at `p` from the grid, m.
