@@ -6,6 +6,7 @@
 //! one: refused up front, naming the waypoint.
 //!
 //! A failing map is written to `target/generated-maps/NAME.toml`: `basestation sim` it.
+//! `GENERATED_MAP_SEEDS=N` widens every suite to seeds 1..=N.
 
 mod common;
 
@@ -15,7 +16,14 @@ use glam::DVec2;
 use hil_sim::report::Report;
 use hil_sim::world::World;
 
-const SEEDS: std::ops::Range<u64> = 1..7;
+/// Seeds 1..=6 per suite; `GENERATED_MAP_SEEDS=N` runs 1..=N (wider sweeps by hand).
+fn seeds() -> std::ops::RangeInclusive<u64> {
+    let n = std::env::var("GENERATED_MAP_SEEDS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(6);
+    1..=n
+}
 
 fn save(g: &Generated) -> String {
     let dir = format!("{}/../target/generated-maps", env!("CARGO_MANIFEST_DIR"));
@@ -105,7 +113,7 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
 
 fn suite(name: &str, make: impl Fn(u64) -> Generated) {
     let mut failures = Vec::new();
-    for seed in SEEDS {
+    for seed in seeds() {
         let g = make(seed);
         match check_way(&g, seed) {
             Ok(line) => println!("ok   {line}"),
@@ -119,7 +127,7 @@ fn suite(name: &str, make: impl Fn(u64) -> Generated) {
         failures.is_empty(),
         "{name}: {} of {} maps failed:\n{}",
         failures.len(),
-        SEEDS.count(),
+        seeds().count(),
         failures.join("\n")
     );
 }
