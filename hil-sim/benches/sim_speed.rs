@@ -22,6 +22,7 @@ fn fleet(n: usize) -> Scenario {
     let mut s = paper_obstacles();
     s.name = format!("open-{n}");
     s.map.obstacles.clear();
+    s.map.bounds = None;
     s.route.goal = Some([400.0, 0.0]);
     s.sim.duration_s = 30.0;
     s.formation.shape = ShapeName::Custom;
