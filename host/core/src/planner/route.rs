@@ -2,9 +2,11 @@
 //! when the way is blocked.
 //!
 //! **Method: A\* on a clearance grid, then string-pulling.** The map becomes a grid of
-//! cells (0.1 m) holding each cell centre's exact distance to the nearest obstacle surface
-//! (capped at a few metres; computed per obstacle over its neighbourhood, so the cost grows
-//! with the obstacles, not with the empty site). A\* runs 8-connected over it:
+//! cells (0.1 m) holding each cell centre's distance to the nearest obstacle surface,
+//! capped at a few metres: exact within a band around every obstacle (where the decision
+//! "does the robot fit" is made), and beyond it a lower bound from a Euclidean distance
+//! transform of the cells the surfaces cross (at most a cell's diagonal low, which only
+//! makes the route a little more cautious about width). A\* runs 8-connected over it:
 //!
 //! - a cell closer than `hard_clearance` (footprint + a margin) is blocked: the line of
 //!   robots, driving the leader's path, fits wherever the route goes, down to passages of
@@ -22,12 +24,14 @@
 //! search buys little here. The grid path is then shortened (string pulling) as long as a
 //! shortcut keeps the clearance class of the cells it replaces.
 
+use std::borrow::Cow;
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 use glam::DVec2;
+use radix_heap::RadixHeapMap;
 
 use crate::formation::FormationSpec;
+use crate::geometry::Obstacle;
 use crate::map::Map;
 
 /// Most cells of a grid; larger sites get coarser cells.
@@ -127,41 +131,62 @@ pub struct ClearanceGrid {
 }
 
 impl ClearanceGrid {
-    /// The grid over `extent`, clearances exact at the centres up to `cap`.
-    pub fn build(map: &Map, extent: Extent, cap: f64) -> Self {
-        let Extent {
-            origin: lo,
-            cell,
-            nx,
-            ny,
-        } = extent;
-        let mut clear = vec![cap as f32; nx * ny];
-        for o in map.obstacles() {
-            let [blo, bhi] = o.bounds();
-            let i0 = (((blo.x - cap - lo.x) / cell).floor().max(0.0)) as usize;
-            let j0 = (((blo.y - cap - lo.y) / cell).floor().max(0.0)) as usize;
-            let i1 = ((((bhi.x + cap - lo.x) / cell).ceil()) as usize).min(nx - 1);
-            let j1 = ((((bhi.y + cap - lo.y) / cell).ceil()) as usize).min(ny - 1);
-            for j in j0..=j1 {
-                let y = lo.y + j as f64 * cell;
-                for i in i0..=i1 {
-                    let p = DVec2::new(lo.x + i as f64 * cell, y);
-                    let d = o.nearest(p).distance.max(0.0) as f32;
-                    let c = &mut clear[j * nx + i];
-                    if d < *c {
-                        *c = d;
-                    }
-                }
-            }
-        }
-        Self {
-            origin: lo,
+    /// The grid over `extent`: clearances exact up to `band` from the surfaces, a lower
+    /// bound (by at most a cell's diagonal) beyond, all capped at `cap`.
+    pub fn build(map: &Map, extent: Extent, band: f64, cap: f64) -> Self {
+        let Extent { cell, nx, ny, .. } = extent;
+        let mut grid = Self {
+            origin: extent.origin,
             cell,
             nx,
             ny,
             cap: cap as f32,
-            clear,
+            clear: vec![f32::INFINITY; nx * ny],
+        };
+        for o in map.obstacles() {
+            grid.stamp(o, band);
         }
+        // Cells a surface crosses seed the transform; beyond the band, the distance to the
+        // nearest seed centre less half a diagonal is a lower bound of the true clearance.
+        let half_diagonal = (cell * std::f64::consts::FRAC_1_SQRT_2) as f32;
+        let seeds: Vec<bool> = grid.clear.iter().map(|c| *c <= half_diagonal).collect();
+        let squared = distance_transform(&seeds, nx, ny);
+        let (band, cap) = (band as f32, cap as f32);
+        for (c, d2) in grid.clear.iter_mut().zip(squared) {
+            if *c > band {
+                let estimate = d2.sqrt() * cell as f32 - half_diagonal;
+                *c = c.min(estimate).max(band);
+            }
+            *c = c.min(cap);
+        }
+        grid
+    }
+
+    /// Lowers the clearances within `reach` of `o` to the exact distance to it.
+    pub fn stamp(&mut self, o: &Obstacle, reach: f64) {
+        let (lo, cell) = (self.origin, self.cell);
+        let [blo, bhi] = o.bounds();
+        let i0 = ((blo.x - reach - lo.x) / cell).floor().max(0.0) as usize;
+        let j0 = ((blo.y - reach - lo.y) / cell).floor().max(0.0) as usize;
+        let i1 = (((bhi.x + reach - lo.x) / cell).ceil().max(0.0) as usize).min(self.nx - 1);
+        let j1 = (((bhi.y + reach - lo.y) / cell).ceil().max(0.0) as usize).min(self.ny - 1);
+        for j in j0..=j1 {
+            let y = lo.y + j as f64 * cell;
+            let row = &mut self.clear[j * self.nx..(j + 1) * self.nx];
+            for (i, c) in row.iter_mut().enumerate().take(i1 + 1).skip(i0) {
+                let p = DVec2::new(lo.x + i as f64 * cell, y);
+                let d = o.nearest(p).distance.max(0.0) as f32;
+                if d < *c {
+                    *c = d;
+                }
+            }
+        }
+    }
+
+    /// Lowers the clearances near an obstacle that was not on the map (sensed), out to the
+    /// cap.
+    pub fn add(&mut self, o: &Obstacle) {
+        self.stamp(o, self.cap as f64);
     }
 
     pub fn extent(&self) -> Extent {
@@ -333,15 +358,15 @@ pub struct RoutePlanner {
     grid: ClearanceGrid,
 }
 
-const NEIGHBOURS: [(i64, i64, f64); 8] = [
+const NEIGHBOURS: [(i64, i64, f32); 8] = [
     (1, 0, 1.0),
     (-1, 0, 1.0),
     (0, 1, 1.0),
     (0, -1, 1.0),
-    (1, 1, std::f64::consts::SQRT_2),
-    (1, -1, std::f64::consts::SQRT_2),
-    (-1, 1, std::f64::consts::SQRT_2),
-    (-1, -1, std::f64::consts::SQRT_2),
+    (1, 1, std::f32::consts::SQRT_2),
+    (1, -1, std::f32::consts::SQRT_2),
+    (-1, 1, std::f32::consts::SQRT_2),
+    (-1, -1, std::f32::consts::SQRT_2),
 ];
 
 impl RoutePlanner {
@@ -349,7 +374,9 @@ impl RoutePlanner {
     /// waypoints) with `params.border` around.
     pub fn new(map: &Map, points: &[DVec2], params: RouteParams) -> Self {
         let cap = params.soft_clearance.max(params.wide_clearance) + params.cell;
-        let grid = ClearanceGrid::build(map, Self::extent(map, points, &params), cap);
+        // Exact where the robot's fit is decided, with room for a cell's error beyond.
+        let band = params.hard_clearance + 3.0 * params.cell;
+        let grid = ClearanceGrid::build(map, Self::extent(map, points, &params), band, cap);
         Self { params, grid }
     }
 
@@ -389,11 +416,17 @@ impl RoutePlanner {
         self.grid.at(p)
     }
 
+    /// Adds an obstacle the map did not hold (sensed) to the grid.
+    pub fn add_obstacle(&mut self, o: &Obstacle) {
+        self.grid.add(o);
+    }
+
     /// Extra cost per metre of a cell with clearance `c` (∞ when blocked).
-    fn penalty(&self, c: f64) -> f64 {
+    fn penalty(&self, c: f32) -> f32 {
         let p = &self.params;
+        let c = c as f64;
         if c < p.hard_clearance {
-            return f64::INFINITY;
+            return f32::INFINITY;
         }
         let narrow = if c < p.wide_clearance {
             p.narrow_penalty
@@ -402,11 +435,50 @@ impl RoutePlanner {
         };
         let span = (p.soft_clearance - p.hard_clearance).max(1e-6);
         let wall = ((p.soft_clearance - c) / span).clamp(0.0, 1.0);
-        1.0 + narrow + p.wall_penalty * wall * wall
+        (1.0 + narrow + p.wall_penalty * wall * wall) as f32
+    }
+
+    /// The clearances a plan from `start` sees: the grid's, with the `blocked` discs as
+    /// obstacles and, when the start is tighter than the margin (a robot starting by a
+    /// bin), the cells near it that it may leave through without touching made passable.
+    fn clearances(&self, start: DVec2, blocked: &[(DVec2, f64)]) -> Cow<'_, [f32]> {
+        let g = &self.grid;
+        let hard = self.params.hard_clearance as f32;
+        let start_c = g.at(start) as f32;
+        if blocked.is_empty() && start_c >= hard {
+            return Cow::Borrowed(&g.clear);
+        }
+        let mut field = g.clone();
+        for (centre, r) in blocked {
+            field.add(&Obstacle::Circle {
+                center: *centre,
+                radius: *r,
+            });
+        }
+        if start_c < hard {
+            let escape = 1.5;
+            let lo = start - DVec2::splat(escape);
+            let hi = start + DVec2::splat(escape);
+            let (Some(a), Some(b)) = (g.index(lo.max(g.origin)), g.index(hi)) else {
+                return Cow::Owned(field.clear);
+            };
+            let (i0, j0, i1, j1) = (a % g.nx, a / g.nx, b % g.nx, b / g.nx);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let k = j * g.nx + i;
+                    let c = field.clear[k];
+                    let near = (g.centre(k) - start).length() < escape;
+                    if near && c > 0.0 && c >= start_c.min(hard) && c < hard {
+                        field.clear[k] = hard;
+                    }
+                }
+            }
+        }
+        Cow::Owned(field.clear)
     }
 
     /// A route from `start` to `target`; `blocked`: extra discs (centre, radius) the route
-    /// must avoid (sensed obstacles, a way found blocked).
+    /// must avoid like obstacles (a way found blocked).
     pub fn plan(
         &self,
         start: DVec2,
@@ -414,102 +486,142 @@ impl RoutePlanner {
         blocked: &[(DVec2, f64)],
     ) -> Result<Route, NoRoute> {
         let g = &self.grid;
-        let hard = self.params.hard_clearance;
-        let inside_blocked = |p: DVec2| blocked.iter().any(|(c, r)| (p - *c).length() < *r);
-        let clearance_with = |p: DVec2| {
-            let mut c = g.at(p);
-            for (centre, r) in blocked {
-                c = c.min(((p - *centre).length() - r).max(0.0));
-            }
-            c
-        };
-        let Some(s) = g.index(start) else {
-            return Err(NoRoute::StartBlocked { start });
+        let (Some(s), Some(t)) = (g.index(start), g.index(target)) else {
+            return Err(match g.index(start) {
+                None => NoRoute::StartBlocked { start },
+                Some(_) => NoRoute::TargetBlocked {
+                    target,
+                    clearance: 0.0,
+                },
+            });
         };
         if g.clear[s] <= 0.0 {
             return Err(NoRoute::StartBlocked { start });
         }
-        let Some(t) = g.index(target) else {
-            return Err(NoRoute::TargetBlocked {
-                target,
-                clearance: 0.0,
-            });
-        };
-        let tc = clearance_with(target);
-        if tc < hard {
+        let clear = self.clearances(start, blocked);
+        let tc = clear[t] as f64;
+        if tc < self.params.hard_clearance {
             return Err(NoRoute::TargetBlocked {
                 target,
                 clearance: tc,
             });
         }
-        // Cells near the start may be tighter than the margin (a robot starting by a bin):
-        // it may leave through them as long as it does not touch.
-        let start_c = g.clear[s] as f64;
-        let escape_radius = 1.5;
-        let n = g.nx * g.ny;
-        let mut cost = vec![f32::INFINITY; n];
-        let mut parent = vec![u32::MAX; n];
-        let mut open = BinaryHeap::new();
+        let fine = Lattice {
+            clear: &clear,
+            nx: g.nx,
+            ny: g.ny,
+            cell: g.cell as f32,
+        };
+        // A coarse search first (each coarse cell as open as its most open fine cell, so
+        // a fine way is always a coarse way), then the fine search inside a corridor
+        // around the coarse route; the whole grid only when the corridor holds no way.
+        let coarse_clear = coarsen(&clear, g.nx, g.ny, COARSE);
+        let coarse = Lattice {
+            clear: &coarse_clear,
+            nx: g.nx.div_ceil(COARSE),
+            ny: g.ny.div_ceil(COARSE),
+            cell: g.cell as f32 * COARSE as f32,
+        };
+        let to_coarse = |k: usize| (k / g.nx / COARSE) * coarse.nx + (k % g.nx) / COARSE;
+        let found = match self.search(&coarse, to_coarse(s), to_coarse(t), None) {
+            Ok(way) => {
+                let corridor = coarse.dilate(&way, CORRIDOR);
+                let inside = |k: usize| corridor[to_coarse(k)];
+                self.search(&fine, s, t, Some(&inside))
+                    .or_else(|_| self.search(&fine, s, t, None))
+            }
+            Err(_) => self.search(&fine, s, t, None),
+        };
+        let cells = match found {
+            Ok(cells) => cells,
+            Err(closest) => {
+                return Err(NoRoute::Unreachable {
+                    target,
+                    closest: g.centre(closest),
+                })
+            }
+        };
+        let mut points: Vec<DVec2> = cells.iter().map(|k| g.centre(*k)).collect();
+        points[0] = start;
+        *points.last_mut().expect("two ends") = target;
+        let at = |p: DVec2| g.index(p).map_or(0.0, |k| clear[k] as f64);
+        Ok(Route::new(self.pull_strings(&points, &at)))
+    }
+
+    /// A\* over `lattice` from cell `s` to `t`, through cells `inside` allows: the cells of
+    /// the cheapest way, or the cell that came closest to `t`.
+    fn search(
+        &self,
+        lattice: &Lattice,
+        s: usize,
+        t: usize,
+        inside: Option<&dyn Fn(usize) -> bool>,
+    ) -> Result<Vec<usize>, usize> {
+        let Lattice {
+            clear,
+            nx,
+            ny,
+            cell,
+        } = *lattice;
+        let wide = self.params.wide_clearance as f32;
+        let entry = self.params.narrow_entry as f32;
+        let (ti, tj) = ((t % nx) as i64, (t / nx) as i64);
+        // Octile distance in metres: admissible and consistent, a metre costs at least 1.
         let h = |k: usize| {
-            let d = (g.centre(k) - g.centre(t)).abs();
-            (d.x.max(d.y) + (std::f64::consts::SQRT_2 - 1.0) * d.x.min(d.y)) as f32
+            let di = ((k % nx) as i64 - ti).unsigned_abs() as f32;
+            let dj = ((k / nx) as i64 - tj).unsigned_abs() as f32;
+            (di.max(dj) + (std::f32::consts::SQRT_2 - 1.0) * di.min(dj)) * cell
+        };
+        let mut cost = vec![f32::INFINITY; clear.len()];
+        let mut parent = vec![u32::MAX; clear.len()];
+        // A monotone queue (the heuristic is consistent, so f never falls below the last
+        // popped; a rounding step below is lifted to it) keyed by the f-cost's bits:
+        // non-negative floats order as their bits. Ties pop last-in first.
+        let mut open = RadixHeapMap::<Reverse<u32>, u32>::new();
+        let push = |open: &mut RadixHeapMap<Reverse<u32>, u32>, f: f32, k: usize| {
+            let floor = open.top().map_or(0, |Reverse(b)| b);
+            open.push(Reverse(f.to_bits().max(floor)), k as u32);
         };
         cost[s] = 0.0;
-        open.push(Reverse((OrdF32(h(s)), s as u32)));
-        let mut closest = (f64::INFINITY, s);
-        while let Some(Reverse((OrdF32(f), k))) = open.pop() {
+        push(&mut open, h(s), s);
+        let mut closest = (f32::INFINITY, s);
+        let (nxi, nyi) = (nx as i64, ny as i64);
+        while let Some((Reverse(f), k)) = open.pop() {
             let k = k as usize;
-            if f - h(k) > cost[k] + 1e-3 {
+            let hk = h(k);
+            if f32::from_bits(f) > cost[k] + hk + 1e-3 {
                 continue;
             }
-            let d_target = (g.centre(k) - target).length();
-            if d_target < closest.0 {
-                closest = (d_target, k);
+            if hk < closest.0 {
+                closest = (hk, k);
             }
             if k == t {
                 break;
             }
-            let (i, j) = ((k % g.nx) as i64, (k / g.nx) as i64);
+            let (i, j) = ((k % nx) as i64, (k / nx) as i64);
+            let leaving_wide = clear[k] >= wide;
             for (di, dj, len) in NEIGHBOURS {
                 let (ni, nj) = (i + di, j + dj);
-                if ni < 0 || nj < 0 || ni >= g.nx as i64 || nj >= g.ny as i64 {
+                if ni < 0 || nj < 0 || ni >= nxi || nj >= nyi {
                     continue;
                 }
-                let m = nj as usize * g.nx + ni as usize;
-                let p = g.centre(m);
-                let c = g.clear[m] as f64;
-                let near_start = (p - start).length() < escape_radius;
-                let mut step = self.penalty(c);
-                if !step.is_finite() && near_start && c >= start_c.min(hard) - 1e-6 && c > 0.0 {
-                    step = 1.0 + self.params.narrow_penalty + self.params.wall_penalty;
-                }
-                if !step.is_finite() || (!blocked.is_empty() && inside_blocked(p)) {
+                let m = (nj * nxi + ni) as usize;
+                let c = clear[m];
+                let step = self.penalty(c);
+                if !step.is_finite() || inside.is_some_and(|allowed| !allowed(m)) {
                     continue;
                 }
-                let extra = if blocked.is_empty() {
-                    0.0
-                } else {
-                    self.penalty(clearance_with(p)).min(4.0) - self.penalty(c).min(4.0)
-                };
-                let wide = self.params.wide_clearance;
-                let entry = if c < wide && (g.clear[k] as f64) >= wide {
-                    self.params.narrow_entry
-                } else {
-                    0.0
-                };
-                let ng = cost[k] + ((step + extra.max(0.0)) * len * g.cell + entry) as f32;
+                let narrowing = if c < wide && leaving_wide { entry } else { 0.0 };
+                let ng = cost[k] + step * len * cell + narrowing;
                 if ng < cost[m] {
                     cost[m] = ng;
                     parent[m] = k as u32;
-                    open.push(Reverse((OrdF32(ng + h(m)), m as u32)));
+                    push(&mut open, ng + h(m), m);
                 }
             }
         }
         if parent[t] == u32::MAX && s != t {
-            return Err(NoRoute::Unreachable {
-                target,
-                closest: g.centre(closest.1),
-            });
+            return Err(closest.1);
         }
         let mut cells = vec![t];
         while let Some(&k) = cells.last() {
@@ -519,59 +631,186 @@ impl RoutePlanner {
             cells.push(parent[k] as usize);
         }
         cells.reverse();
-        let mut points: Vec<DVec2> = cells.iter().map(|k| g.centre(*k)).collect();
-        points[0] = start;
-        *points.last_mut().expect("two ends") = target;
-        Ok(Route::new(self.pull_strings(&points, &clearance_with)))
+        Ok(cells)
     }
 
-    /// Shortens the grid path: a shortcut from point i to j replaces the cells between
-    /// when every point along it keeps the least clearance those cells had (up to the
-    /// preferred clearance), so the way stays as wide as the search chose.
+    /// Shortens the grid path: a shortcut from point i to j replaces the points between
+    /// when every point along it keeps the least clearance those points had (up to the
+    /// preferred clearance), so the way stays as wide as the search chose. The farthest
+    /// shortcut is found by doubling then halving the reach (a few segment checks per
+    /// vertex, not one per point: linear-logarithmic in the route's length).
     fn pull_strings(&self, path: &[DVec2], clearance: &dyn Fn(DVec2) -> f64) -> Vec<DVec2> {
         if path.len() < 3 {
             return path.to_vec();
         }
         let soft = self.params.soft_clearance;
         let step = 0.5 * self.grid.cell;
+        let class: Vec<f64> = path.iter().map(|p| clearance(*p).min(soft)).collect();
+        let shortcut = |i: usize, j: usize| {
+            let least = class[i + 1..j].iter().copied().fold(soft, f64::min);
+            let (a, b) = (path[i], path[j]);
+            let n = ((b - a).length() / step).ceil() as usize;
+            (1..n).all(|k| clearance(a.lerp(b, k as f64 / n as f64)) >= least - 1e-6)
+        };
+        let last = path.len() - 1;
         let mut out = vec![path[0]];
         let mut i = 0;
-        while i + 1 < path.len() {
-            let mut best = i + 1;
-            let mut class = clearance(path[i + 1]).min(soft);
-            for j in i + 2..path.len() {
-                class = class.min(clearance(path[j]).min(soft));
-                let (a, b) = (path[i], path[j]);
-                let n = ((b - a).length() / step).ceil() as usize;
-                let ok = (1..n).all(|k| clearance(a.lerp(b, k as f64 / n as f64)) >= class - 1e-6);
-                if !ok {
+        while i < last {
+            // Doubling: the first reach that fails bounds the search.
+            let mut ok = i + 1;
+            let mut reach = 2;
+            let mut fail = None;
+            while ok < last {
+                let j = (i + reach).min(last);
+                if shortcut(i, j) {
+                    ok = j;
+                    reach *= 2;
+                } else {
+                    fail = Some(j);
                     break;
                 }
-                best = j;
             }
-            out.push(path[best]);
-            i = best;
+            // Halving between the last reach that held and the first that failed.
+            if let Some(mut hi) = fail {
+                while hi - ok > 1 {
+                    let mid = (ok + hi) / 2;
+                    if shortcut(i, mid) {
+                        ok = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+            }
+            out.push(path[ok]);
+            i = ok;
         }
         out
     }
 }
 
-/// An f32 that orders (the costs here are never NaN).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct OrdF32(f32);
+/// Fine cells per coarse cell side in the first search.
+const COARSE: usize = 5;
+/// Coarse cells either side of the coarse route that the fine search may use.
+const CORRIDOR: usize = 3;
 
-impl Eq for OrdF32 {}
+/// A grid of clearances to search.
+#[derive(Clone, Copy)]
+struct Lattice<'a> {
+    clear: &'a [f32],
+    nx: usize,
+    ny: usize,
+    cell: f32,
+}
 
-impl PartialOrd for OrdF32 {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
+impl Lattice<'_> {
+    /// The cells within `r` (Chebyshev) of `cells`.
+    fn dilate(&self, cells: &[usize], r: usize) -> Vec<bool> {
+        let mut mask = vec![false; self.nx * self.ny];
+        for &k in cells {
+            let (i, j) = (k % self.nx, k / self.nx);
+            for jj in j.saturating_sub(r)..=(j + r).min(self.ny - 1) {
+                for ii in i.saturating_sub(r)..=(i + r).min(self.nx - 1) {
+                    mask[jj * self.nx + ii] = true;
+                }
+            }
+        }
+        mask
     }
 }
 
-impl Ord for OrdF32 {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0)
+/// Each `f` × `f` block's largest clearance.
+fn coarsen(clear: &[f32], nx: usize, ny: usize, f: usize) -> Vec<f32> {
+    let cnx = nx.div_ceil(f);
+    let mut out = vec![0f32; cnx * ny.div_ceil(f)];
+    for (j, row) in clear.chunks(nx).enumerate() {
+        let out_row = &mut out[(j / f) * cnx..(j / f + 1) * cnx];
+        for (i, c) in row.iter().enumerate() {
+            let o = &mut out_row[i / f];
+            *o = o.max(*c);
+        }
     }
+    out
+}
+
+/// The squared distance, in cells, from each cell to the nearest seed (∞ without seeds):
+/// Felzenszwalb and Huttenlocher's exact transform, columns then rows, both swept in
+/// memory order.
+fn distance_transform(seeds: &[bool], nx: usize, ny: usize) -> Vec<f32> {
+    let mut d = vec![f32::INFINITY; nx * ny];
+    // Columns: the distance to the nearest seed above or below, by two sweeps over rows.
+    let mut nearest = vec![f32::INFINITY; nx];
+    for j in 0..ny {
+        let row = &mut d[j * nx..(j + 1) * nx];
+        for i in 0..nx {
+            nearest[i] = if seeds[j * nx + i] {
+                0.0
+            } else {
+                nearest[i] + 1.0
+            };
+            row[i] = nearest[i];
+        }
+    }
+    nearest.fill(f32::INFINITY);
+    for j in (0..ny).rev() {
+        let row = &mut d[j * nx..(j + 1) * nx];
+        for i in 0..nx {
+            nearest[i] = if seeds[j * nx + i] {
+                0.0
+            } else {
+                nearest[i] + 1.0
+            };
+            let v = row[i].min(nearest[i]);
+            row[i] = v * v;
+        }
+    }
+    // Rows: the lower envelope of the parabolas (x − q)² + f(q).
+    let mut f = vec![0f32; nx];
+    let mut v = vec![0usize; nx];
+    let mut z = vec![0f32; nx + 1];
+    for row in d.chunks_mut(nx) {
+        f.copy_from_slice(row);
+        let mut k: isize = -1;
+        for q in 0..nx {
+            if !f[q].is_finite() {
+                continue;
+            }
+            let qf = q as f32;
+            loop {
+                if k < 0 {
+                    k = 0;
+                    v[0] = q;
+                    z[0] = f32::NEG_INFINITY;
+                    z[1] = f32::INFINITY;
+                    break;
+                }
+                let p = v[k as usize];
+                let pf = p as f32;
+                let s = ((f[q] + qf * qf) - (f[p] + pf * pf)) / (2.0 * (qf - pf));
+                if s <= z[k as usize] {
+                    k -= 1;
+                    continue;
+                }
+                k += 1;
+                v[k as usize] = q;
+                z[k as usize] = s;
+                z[k as usize + 1] = f32::INFINITY;
+                break;
+            }
+        }
+        if k < 0 {
+            continue;
+        }
+        let mut k = 0usize;
+        for (x, out) in row.iter_mut().enumerate() {
+            let xf = x as f32;
+            while z[k + 1] < xf {
+                k += 1;
+            }
+            let dx = xf - v[k] as f32;
+            *out = dx * dx + f[v[k]];
+        }
+    }
+    d
 }
 
 #[cfg(test)]
@@ -697,6 +936,62 @@ mod tests {
         let route = rp.plan(a, b, &[]).unwrap();
         assert_eq!(route.points.len(), 2, "{:?}", route.points);
         assert!((route.length() - (b - a).length()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_distance_transform_is_exact() {
+        let (nx, ny) = (37, 23);
+        let mut state = 7u64;
+        let seeds: Vec<bool> = (0..nx * ny)
+            .map(|_| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+                (state >> 33) % 41 == 0
+            })
+            .collect();
+        let d = distance_transform(&seeds, nx, ny);
+        for k in 0..nx * ny {
+            let (i, j) = ((k % nx) as f32, (k / nx) as f32);
+            let brute = (0..nx * ny)
+                .filter(|q| seeds[*q])
+                .map(|q| {
+                    let (a, b) = ((q % nx) as f32 - i, (q / nx) as f32 - j);
+                    a * a + b * b
+                })
+                .fold(f32::INFINITY, f32::min);
+            assert_eq!(d[k], brute, "cell {k}");
+        }
+        assert!(distance_transform(&[false; 6], 3, 2)
+            .iter()
+            .all(|v| v.is_infinite()));
+    }
+
+    #[test]
+    fn clearances_are_exact_near_surfaces_and_never_too_high_beyond() {
+        let map = Map::new(vec![
+            Obstacle::Circle {
+                center: DVec2::new(3.0, 2.0),
+                radius: 0.7,
+            },
+            Obstacle::Segment {
+                a: DVec2::new(-1.0, 6.0),
+                b: DVec2::new(6.0, 4.5),
+            },
+            rect((7.0, -1.0), (8.0, 5.0)),
+        ]);
+        let (band, cap) = (0.64, 2.4);
+        let extent = Extent::new(DVec2::splat(-3.0), DVec2::new(11.0, 9.0), 0.1);
+        let grid = ClearanceGrid::build(&map, extent, band, cap);
+        for k in 0..grid.clear.len() {
+            let p = grid.centre(k);
+            let truth = map.clearance(p, 10.0).max(0.0).min(cap);
+            let c = grid.clear[k] as f64;
+            if truth <= band {
+                assert!((c - truth).abs() < 1e-5, "{p}: {c} vs {truth}");
+            } else {
+                assert!(c <= truth + 1e-5, "{p}: {c} above the truth {truth}");
+                assert!(c >= truth - 0.15, "{p}: {c} far below the truth {truth}");
+            }
+        }
     }
 
     #[test]
