@@ -945,11 +945,11 @@ mod tests {
         let seeds: Vec<bool> = (0..nx * ny)
             .map(|_| {
                 state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
-                (state >> 33) % 41 == 0
+                (state >> 33).is_multiple_of(41)
             })
             .collect();
         let d = distance_transform(&seeds, nx, ny);
-        for k in 0..nx * ny {
+        for (k, dk) in d.iter().enumerate() {
             let (i, j) = ((k % nx) as f32, (k / nx) as f32);
             let brute = (0..nx * ny)
                 .filter(|q| seeds[*q])
@@ -958,7 +958,7 @@ mod tests {
                     a * a + b * b
                 })
                 .fold(f32::INFINITY, f32::min);
-            assert_eq!(d[k], brute, "cell {k}");
+            assert_eq!(*dk, brute, "cell {k}");
         }
         assert!(distance_transform(&[false; 6], 3, 2)
             .iter()
