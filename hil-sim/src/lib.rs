@@ -17,5 +17,6 @@ pub mod qemu;
 pub mod radio;
 pub mod report;
 pub mod run;
+pub mod scanner;
 pub mod trace;
 pub mod world;

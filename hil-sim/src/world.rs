@@ -27,6 +27,7 @@ use crate::faults::{Action, DeadBrain, Injector};
 use crate::metrics::{Recorder, Tracked};
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
+use crate::scanner::Scanner;
 
 /// Which control code runs in the robots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -158,6 +159,7 @@ pub struct World {
     goal_at_us: Option<u64>,
     injector: Injector,
     radio_params: RadioParams,
+    scanner: Scanner,
     /// When the current base station started (a restart begins a new clock).
     base_epoch_us: u64,
     robot_cfg: RobotConfig,
@@ -275,13 +277,15 @@ impl World {
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let map = scenario.build_map();
+        let map = scenario.build_site();
+        let scanner = Scanner::new(&scenario);
         let recorder = Recorder::new(&scenario);
         let radio_params = *radio.params();
         let injector = Injector::new(scenario.faults.clone(), options.seed);
         Ok(Self {
             injector,
             radio_params,
+            scanner,
             base_epoch_us: 0,
             robot_cfg: cfg,
             elf,
@@ -476,8 +480,14 @@ impl World {
             }
         }
 
-        // Base station at 10 Hz.
+        // Base station at 10 Hz, with the leader's scan of the moment.
         if t.is_multiple_of(PERIOD_US) {
+            if let Some(at) = self.leader_position() {
+                let hits = self.scanner.scan(at);
+                if !hits.is_empty() {
+                    self.station.sense(&hits);
+                }
+            }
             self.station.step(base_ms);
             let out = self.station.take_outbox();
             self.transmit(0, &out);

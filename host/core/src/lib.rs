@@ -4,6 +4,7 @@
 pub mod formation;
 pub mod geometry;
 pub mod map;
+pub mod perception;
 pub mod planner;
 pub mod scenario;
 pub mod station;

@@ -15,6 +15,7 @@ use protocol::{units, Address, FleetKey, FrameDecoder, Reject, RejectCounts, MAX
 
 use crate::formation::{FormationManager, FormationSpec, Target};
 use crate::map::Map;
+use crate::perception::Perception;
 use crate::planner::route::RouteParams;
 use crate::planner::{Guidance, PlanPose, Planner, PlannerParams};
 
@@ -121,6 +122,10 @@ pub struct BaseStation {
     decoder: FrameDecoder,
     planner: Planner,
     formation: FormationManager,
+    /// What the leader's scanner found that the map does not hold.
+    perception: Perception,
+    /// The map and what was sensed: what the planner and the formation avoid.
+    world: Map,
     robots: BTreeMap<u16, RobotStatus>,
     outbox: Vec<u8>,
     last_slots_ms: Option<u32>,
@@ -188,8 +193,11 @@ impl BaseStation {
             ),
         };
         let formation = FormationManager::new(cfg.formation.clone());
+        let world = cfg.map.clone();
         Self {
             cfg,
+            perception: Perception::default(),
+            world,
             link,
             decoder: FrameDecoder::new(),
             planner,
@@ -208,6 +216,29 @@ impl BaseStation {
             driven: std::collections::VecDeque::new(),
             last_command: (0.0, 0.0),
         }
+    }
+
+    /// One scan of the leader's range scanner: hit points in the site frame. Hits the map
+    /// explains are ignored; the rest become obstacles the leader avoids, and the route is
+    /// planned again if they lie on it.
+    pub fn sense(&mut self, hits: &[DVec2]) {
+        let added = self.perception.absorb(hits, &self.cfg.map);
+        if added.is_empty() {
+            return;
+        }
+        tracing::debug!(
+            count = added.len(),
+            "sensed obstacles the map does not hold"
+        );
+        self.planner.add_obstacles(&added);
+        let mut all = self.cfg.map.obstacles().to_vec();
+        all.extend_from_slice(self.perception.obstacles());
+        self.world = Map::new(all);
+    }
+
+    /// The obstacles sensed so far that the map does not hold.
+    pub fn perception(&self) -> &Perception {
+        &self.perception
     }
 
     pub fn config(&self) -> &StationConfig {
@@ -426,7 +457,7 @@ impl BaseStation {
         let followers = self.follower_positions(now_ms);
         self.record_leader_path(leader.pose.position);
         self.planner
-            .prepare(now_s, leader.pose.position, &self.cfg.map);
+            .prepare(now_s, leader.pose.position, &self.world);
         let spec = self.formation.spec();
         let horizon =
             spec.lookahead + self.formation.wide_reach().max(self.formation.line_reach()) + 3.0;
@@ -437,7 +468,7 @@ impl BaseStation {
         let before = self.formation.transformations().len();
         let blend = self
             .formation
-            .step(now_s, &ahead, &behind, &followers, &self.cfg.map);
+            .step(now_s, &ahead, &behind, &followers, &self.world);
         if self.formation.transformations().len() > before {
             let to = self.formation.target();
             tracing::info!(?to, "formation change");
@@ -499,7 +530,7 @@ impl BaseStation {
             now_s,
             self.cfg.period_ms as f64 / 1000.0,
             leader.pose,
-            &self.cfg.map,
+            &self.world,
             half_width,
             speed_scale,
         );

@@ -63,8 +63,12 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     for text in &args.faults {
         scenario.faults.push(parse_fault(text)?);
     }
-    if let Err((field, message)) = scenario.validate() {
-        anyhow::bail!("--fault: field `{field}`: {message}");
+    if let Err(problems) = scenario.validate() {
+        let lines: Vec<String> = problems
+            .iter()
+            .map(|(field, message)| format!("--fault: field `{field}`: {message}"))
+            .collect();
+        anyhow::bail!("{}", lines.join("\n"));
     }
     let firmware = match args.firmware {
         FirmwareArg::Native => Firmware::Native,

@@ -17,6 +17,8 @@ pub struct Generated {
 
 struct Builder {
     obstacles: Vec<String>,
+    /// On the site, not on the map.
+    unmapped: Vec<String>,
     robots: Vec<(f64, f64, f64)>,
     bounds: Option<([f64; 2], [f64; 2])>,
     waypoints: Vec<[f64; 2]>,
@@ -28,6 +30,7 @@ impl Builder {
     fn new(goal: [f64; 2]) -> Self {
         Self {
             obstacles: Vec::new(),
+            unmapped: Vec::new(),
             robots: Vec::new(),
             bounds: None,
             waypoints: Vec::new(),
@@ -48,6 +51,13 @@ impl Builder {
             "{{ kind = \"rectangle\", min = [{:.3}, {:.3}], max = [{:.3}, {:.3}] }}",
             lo[0], lo[1], hi[0], hi[1]
         ));
+    }
+
+    /// A rectangle on the site that the map does not hold.
+    fn unmapped_rect(&mut self, lo: [f64; 2], hi: [f64; 2]) {
+        self.rect(lo, hi);
+        let r = self.obstacles.pop().expect("just pushed");
+        self.unmapped.push(r);
     }
 
     fn polygon(&mut self, pts: &[[f64; 2]]) {
@@ -104,6 +114,9 @@ impl Builder {
             );
         }
         let _ = writeln!(t, "obstacles = [\n  {}\n]", self.obstacles.join(",\n  "));
+        if !self.unmapped.is_empty() {
+            let _ = writeln!(t, "unmapped = [\n  {}\n]", self.unmapped.join(",\n  "));
+        }
         for (i, (x, y, h)) in self.robots.iter().enumerate() {
             let role = if i == 0 { "leader" } else { "follower" };
             let _ = writeln!(
@@ -355,4 +368,34 @@ pub fn no_way(seed: u64) -> Generated {
     }
     b.fleet([2.0, 0.0], 0.0, 2);
     b.build(&format!("no-way-seed{seed}"), false)
+}
+
+/// Something the map does not hold across the way: a van parked across the straight way
+/// to the goal (seen only when the leader's scanner reaches it), or, on odd seeds, a
+/// barrier closing the nearer of two parallel streets so that the route must change
+/// street.
+pub fn unmapped_in_the_way(seed: u64) -> Generated {
+    let mut r = rng(8, seed);
+    if seed.is_multiple_of(2) {
+        let y = r.random_range(-1.0..1.0);
+        let mut b = Builder::new([45.0, r.random_range(-2.0..2.0)]);
+        b.bounds = Some(([-8.0, -15.0], [52.0, 15.0]));
+        let x = r.random_range(15.0..25.0);
+        let (w, l) = (r.random_range(2.0..2.5), r.random_range(5.0..7.0));
+        b.unmapped_rect([x, y - l / 2.0], [x + w, y + l / 2.0]);
+        b.circle([r.random_range(30.0..38.0), r.random_range(4.0..8.0)], 0.5);
+        b.fleet([2.0, 0.0], 0.0, 2);
+        b.build(&format!("unmapped-van-seed{seed}"), true)
+    } else {
+        // Streets along y = 0 (the nearer) and y = 16, a block between them, joined at
+        // both ends; the barrier closes the y = 0 street half way.
+        let len = r.random_range(40.0..55.0);
+        let mut b = Builder::new([len + 4.0, 0.0]);
+        b.bounds = Some(([-10.0, -6.0], [len + 10.0, 22.0]));
+        b.rect([6.0, 5.0], [len - 2.0, 11.0]);
+        let x = r.random_range(18.0..len - 12.0);
+        b.unmapped_rect([x, -6.0], [x + 0.5, 5.0]);
+        b.fleet([0.0, 0.0], 0.0, 2);
+        b.build(&format!("unmapped-barrier-seed{seed}"), true)
+    }
 }

@@ -45,6 +45,7 @@ use std::collections::VecDeque;
 
 use glam::DVec2;
 
+use crate::geometry::Obstacle;
 use crate::map::Map;
 use apf::ApfParams;
 use route::{NoRoute, Route, RouteParams, RoutePlanner};
@@ -163,6 +164,10 @@ struct Routing {
     s: f64,
     /// Discs found blocked (centre, radius).
     blocked: Vec<(DVec2, f64)>,
+    /// Obstacles sensed that the map does not hold, all of them (stamped into every grid
+    /// built), and those not yet checked against the route.
+    sensed: Vec<Obstacle>,
+    unchecked: Vec<Obstacle>,
     /// (time, progress) while nothing held the leader back.
     progress: VecDeque<(f64, f64)>,
     replans: u32,
@@ -175,6 +180,21 @@ struct Routing {
 pub struct PlanPose {
     pub position: DVec2,
     pub heading: f64,
+}
+
+/// Whether any of `obstacles` comes within `clearance` of `route` beyond arc length `from`.
+fn blocks(obstacles: &[Obstacle], route: &Route, from: f64, clearance: f64) -> bool {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for o in obstacles {
+        let [a, b] = o.bounds();
+        lo = lo.min(a - clearance);
+        hi = hi.max(b + clearance);
+    }
+    route
+        .sample(from, route.length() - from, 0.1)
+        .iter()
+        .filter(|p| p.cmpge(lo).all() && p.cmple(hi).all())
+        .any(|p| obstacles.iter().any(|o| o.nearest(*p).distance < clearance))
 }
 
 fn wrap(a: f64) -> f64 {
@@ -222,6 +242,8 @@ impl Planner {
             waypoint_arc: Vec::new(),
             s: 0.0,
             blocked: Vec::new(),
+            sensed: Vec::new(),
+            unchecked: Vec::new(),
             progress: VecDeque::new(),
             replans: 0,
             failure: None,
@@ -233,6 +255,21 @@ impl Planner {
     /// The route being followed (route guidance, once planned).
     pub fn route(&self) -> Option<&Route> {
         self.routing.as_ref().and_then(|r| r.route.as_ref())
+    }
+
+    /// Obstacles the map does not hold, sensed on the way: the route avoids them from now
+    /// on, and is planned again at the next step if one lies on the way ahead.
+    pub fn add_obstacles(&mut self, obstacles: &[Obstacle]) {
+        let Some(routing) = self.routing.as_mut() else {
+            return;
+        };
+        if let Some(planner) = routing.planner.as_mut() {
+            for o in obstacles {
+                planner.add_obstacle(o);
+            }
+        }
+        routing.sensed.extend_from_slice(obstacles);
+        routing.unchecked.extend_from_slice(obstacles);
     }
 
     /// How many times the route was planned again because the way was blocked.
@@ -441,12 +478,42 @@ impl Planner {
     /// `stuck_window_s`). The station calls it from its first sight of the leader, so the
     /// formation manager looks along the route before the leader moves.
     pub fn prepare(&mut self, now_s: f64, from: DVec2, map: &Map) {
+        self.check_sensed(now_s, from, map);
         let window = self.params.stuck_window_s;
         let needs_plan = self.routing.as_ref().is_some_and(|r| {
             r.route.is_none() && (r.failure.is_none() || now_s - r.last_attempt_s >= window)
         });
         if needs_plan && self.mode != Mode::Arrived {
             self.plan_route(from, now_s, map);
+        }
+    }
+
+    /// Plans again if something sensed since the last check lies on the way ahead (before
+    /// the formation manager looks along the route, so it sees the new one).
+    fn check_sensed(&mut self, now_s: f64, from: DVec2, map: &Map) {
+        let Some(routing) = self.routing.as_mut() else {
+            return;
+        };
+        if routing.unchecked.is_empty() {
+            return;
+        }
+        // Blocking the way: plan again now. Narrowing it below what the wide formation
+        // needs (the route's cost changed): plan again, at most once a second, since a
+        // street with something parked in it narrows with every scan.
+        let (hard, wide) = (routing.params.hard_clearance, routing.params.wide_clearance);
+        let route = routing.route.as_ref();
+        let blocked = route.is_some_and(|r| blocks(&routing.unchecked, r, routing.s, hard));
+        let narrowed = !blocked
+            && now_s - routing.last_attempt_s >= 1.0
+            && route.is_some_and(|r| blocks(&routing.unchecked, r, routing.s, wide));
+        if blocked || narrowed {
+            routing.unchecked.clear();
+            tracing::info!(blocked, "something unmapped on the way: planning again");
+            routing.replans += 1;
+            routing.route = None;
+            self.plan_route(from, now_s, map);
+        } else if !narrowed && now_s - routing.last_attempt_s >= 1.0 {
+            routing.unchecked.clear();
         }
     }
 
@@ -467,7 +534,11 @@ impl Planner {
             {
                 points.push(from);
             }
-            routing.planner = Some(RoutePlanner::new(map, &points, routing.params));
+            let mut planner = RoutePlanner::new(map, &points, routing.params);
+            for o in &routing.sensed {
+                planner.add_obstacle(o);
+            }
+            routing.planner = Some(planner);
         }
         let Some(planner) = routing.planner.as_ref() else {
             return;

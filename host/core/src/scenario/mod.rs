@@ -51,6 +51,36 @@ impl fmt::Display for ScenarioError {
 
 impl std::error::Error for ScenarioError {}
 
+/// Every problem found in a scenario file, in order (at least one).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScenarioErrors(pub Vec<ScenarioError>);
+
+impl ScenarioErrors {
+    pub fn first(&self) -> &ScenarioError {
+        &self.0[0]
+    }
+}
+
+impl From<ScenarioError> for ScenarioErrors {
+    fn from(e: ScenarioError) -> Self {
+        Self(vec![e])
+    }
+}
+
+impl fmt::Display for ScenarioErrors {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for ScenarioErrors {}
+
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
@@ -149,6 +179,10 @@ pub struct MapSpec {
     /// open around the obstacles.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bounds: Option<BoundsSpec>,
+    /// Obstacles on the site that the map does not hold (simulation only): the robots meet
+    /// them, the base station learns of them only through the leader's scanner.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unmapped: Vec<ObstacleSpec>,
 }
 
 /// An axis-aligned site edge.
@@ -544,7 +578,7 @@ impl Default for SimSpec {
 
 impl Scenario {
     /// Reads, parses and validates a scenario file.
-    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioErrors> {
         let file = path.display().to_string();
         let src = std::fs::read_to_string(path).map_err(|e| ScenarioError {
             file: file.clone(),
@@ -555,8 +589,10 @@ impl Scenario {
         Scenario::parse(&src, &file)
     }
 
-    /// Parses and validates scenario text; `file` names it in errors.
-    pub fn parse(src: &str, file: &str) -> Result<Scenario, ScenarioError> {
+    /// Parses and validates scenario text; `file` names it in errors. A syntax or type
+    /// error stops the parser (only the first is known); the semantic checks list every
+    /// problem.
+    pub fn parse(src: &str, file: &str) -> Result<Scenario, ScenarioErrors> {
         let error =
             |field: String, position: Option<(usize, usize)>, message: String| ScenarioError {
                 file: file.to_string(),
@@ -581,9 +617,14 @@ impl Scenario {
                 .or_else(|| locate(src, &field));
             error(field, position, inner.message().trim().to_string())
         })?;
-        scenario
-            .validate()
-            .map_err(|(field, message)| error(field.clone(), locate(src, &field), message))?;
+        scenario.validate().map_err(|problems| {
+            ScenarioErrors(
+                problems
+                    .into_iter()
+                    .map(|(field, message)| error(field.clone(), locate(src, &field), message))
+                    .collect(),
+            )
+        })?;
         Ok(scenario)
     }
 
@@ -605,8 +646,21 @@ impl Scenario {
         f
     }
 
-    /// The site map: the obstacles, and the site's edge as four walls.
+    /// The site map the base station holds: the obstacles, and the site's edge as four
+    /// walls.
     pub fn build_map(&self) -> Map {
+        Map::new(self.map_obstacles())
+    }
+
+    /// The site as it is (what the simulated robots meet): the map and what it does not
+    /// hold (`map.unmapped`).
+    pub fn build_site(&self) -> Map {
+        let mut obstacles = self.map_obstacles();
+        obstacles.extend(self.map.unmapped.iter().map(ObstacleSpec::to_obstacle));
+        Map::new(obstacles)
+    }
+
+    fn map_obstacles(&self) -> Vec<Obstacle> {
         let mut obstacles: Vec<Obstacle> = self
             .map
             .obstacles
@@ -623,7 +677,7 @@ impl Scenario {
                 });
             }
         }
-        Map::new(obstacles)
+        obstacles
     }
 
     pub fn planner_params(&self) -> PlannerParams {

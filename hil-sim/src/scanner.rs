@@ -1,0 +1,57 @@
+//! The leader's range scanner: a planar lidar (`RAYS` beams over a full turn, `RANGE`
+//! metres) that sees the site as it is. It reports only hits on what the map does not
+//! hold: the base station ignores hits on mapped surfaces anyway, and leaving them out
+//! spares the simulator the casts on maps without anything unmapped. Hits are registered
+//! in the site frame from the leader's true pose (perfect registration).
+
+use base_station::map::Map;
+use base_station::scenario::Scenario;
+use glam::DVec2;
+
+/// Beams per scan.
+pub const RAYS: usize = 180;
+/// Range, m.
+pub const RANGE: f64 = 8.0;
+
+pub struct Scanner {
+    known: Map,
+    /// `None` when the site holds nothing the map does not.
+    unmapped: Option<Map>,
+}
+
+impl Scanner {
+    pub fn new(scenario: &Scenario) -> Self {
+        let unmapped = (!scenario.map.unmapped.is_empty()).then(|| {
+            Map::new(
+                scenario
+                    .map
+                    .unmapped
+                    .iter()
+                    .map(|o| o.to_obstacle())
+                    .collect(),
+            )
+        });
+        Self {
+            known: scenario.build_map(),
+            unmapped,
+        }
+    }
+
+    /// One scan from `at`: the points where a beam first meets something unmapped.
+    pub fn scan(&self, at: DVec2) -> Vec<DVec2> {
+        let Some(unmapped) = &self.unmapped else {
+            return Vec::new();
+        };
+        if unmapped.near(at, RANGE).next().is_none() {
+            return Vec::new();
+        }
+        (0..RAYS)
+            .filter_map(|k| {
+                let dir = DVec2::from_angle(k as f64 * std::f64::consts::TAU / RAYS as f64);
+                let d = unmapped.ray_cast(at, dir, RANGE);
+                let seen = d < RANGE && self.known.ray_cast(at, dir, d) >= d;
+                seen.then(|| at + dir * d)
+            })
+            .collect()
+    }
+}
