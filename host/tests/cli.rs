@@ -105,6 +105,21 @@ fn bad_files_name_file_line_and_field() {
 }
 
 #[test]
+fn check_lists_every_problem_in_a_file() {
+    let text = GOOD
+        .replacen("radius = 0.5", "radius = -1.0", 1)
+        .replace("k_a = 1.0", "k_a = nan");
+    let (code, err) = check_text("two.toml", &text);
+    assert_eq!(code, 1, "{err}");
+    for expected in [
+        "two.toml:9:54: field `map.obstacles[0].radius`: must be a finite number > 0",
+        "field `planner.k_a`: must be a finite number > 0",
+    ] {
+        assert!(err.contains(expected), "got: {err}\nexpected: {expected}");
+    }
+}
+
+#[test]
 fn decode_prints_rejects_for_garbage_and_exits_cleanly() {
     let mut garbage: Vec<u8> = (0..5000u32)
         .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)

@@ -150,7 +150,8 @@ impl ClearanceGrid {
         // nearest seed centre less half a diagonal is a lower bound of the true clearance.
         let half_diagonal = (cell * std::f64::consts::FRAC_1_SQRT_2) as f32;
         let seeds: Vec<bool> = grid.clear.iter().map(|c| *c <= half_diagonal).collect();
-        let squared = distance_transform(&seeds, nx, ny);
+        let limit = (cap / cell + 2.0).powi(2) as f32;
+        let squared = distance_transform(&seeds, nx, ny, limit);
         let (band, cap) = (band as f32, cap as f32);
         for (c, d2) in grid.clear.iter_mut().zip(squared) {
             if *c > band {
@@ -732,10 +733,11 @@ fn coarsen(clear: &[f32], nx: usize, ny: usize, f: usize) -> Vec<f32> {
     out
 }
 
-/// The squared distance, in cells, from each cell to the nearest seed (∞ without seeds):
-/// Felzenszwalb and Huttenlocher's exact transform, columns then rows, both swept in
-/// memory order.
-fn distance_transform(seeds: &[bool], nx: usize, ny: usize) -> Vec<f32> {
+/// The squared distance, in cells, from each cell to the nearest seed, exact below `limit`
+/// (at or above it, some value at or above it; ∞ without seeds): Felzenszwalb and
+/// Huttenlocher's transform, columns then rows, both swept in memory order. A parabola at
+/// or above `limit` cannot bring a cell below it, so rows far from every seed are skipped.
+fn distance_transform(seeds: &[bool], nx: usize, ny: usize, limit: f32) -> Vec<f32> {
     let mut d = vec![f32::INFINITY; nx * ny];
     // Columns: the distance to the nearest seed above or below, by two sweeps over rows.
     let mut nearest = vec![f32::INFINITY; nx];
@@ -771,7 +773,7 @@ fn distance_transform(seeds: &[bool], nx: usize, ny: usize) -> Vec<f32> {
         f.copy_from_slice(row);
         let mut k: isize = -1;
         for q in 0..nx {
-            if !f[q].is_finite() {
+            if f[q] >= limit {
                 continue;
             }
             let qf = q as f32;
@@ -948,7 +950,7 @@ mod tests {
                 (state >> 33).is_multiple_of(41)
             })
             .collect();
-        let d = distance_transform(&seeds, nx, ny);
+        let d = distance_transform(&seeds, nx, ny, f32::INFINITY);
         for (k, dk) in d.iter().enumerate() {
             let (i, j) = ((k % nx) as f32, (k / nx) as f32);
             let brute = (0..nx * ny)
@@ -960,7 +962,7 @@ mod tests {
                 .fold(f32::INFINITY, f32::min);
             assert_eq!(*dk, brute, "cell {k}");
         }
-        assert!(distance_transform(&[false; 6], 3, 2)
+        assert!(distance_transform(&[false; 6], 3, 2, f32::INFINITY)
             .iter()
             .all(|v| v.is_infinite()));
     }
