@@ -350,9 +350,16 @@ impl<const PEERS: usize> Link<PEERS> {
                     return Err(Reject::Replay);
                 }
                 peer.challenges.clear();
+                // Within the same session a floor never goes back: a Welcome held back and
+                // delivered late must not reopen the frames accepted since it was sent.
+                let same = peer.session == Some(welcome.session);
+                let floor = |old: Option<u32>, new: u32| match old {
+                    Some(old) if same => old.max(new),
+                    _ => new,
+                };
                 peer.session = Some(welcome.session);
-                peer.rx_unicast.last = Some(header.seq);
-                peer.rx_broadcast.last = Some(welcome.broadcast_seq);
+                peer.rx_unicast.last = Some(floor(peer.rx_unicast.last, header.seq));
+                peer.rx_broadcast.last = Some(floor(peer.rx_broadcast.last, welcome.broadcast_seq));
                 peer.last_rx_ms = Some(now_ms);
                 // NTP's estimate: the answer left halfway through the round trip.
                 let mid = sent_ms as i64 + (now_ms.wrapping_sub(sent_ms) / 2) as i64;

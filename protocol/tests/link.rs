@@ -301,3 +301,37 @@ fn a_slow_link_may_answer_an_earlier_challenge() {
         "a 5 s old challenge"
     );
 }
+
+#[test]
+fn a_late_welcome_never_lowers_the_replay_floor() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    robot_links_to(&mut r, &mut b, 0);
+    // The robot challenges again; the answer is held back while frames flow.
+    let mut buf = [0u8; MAX_WIRE];
+    let n = r.challenge(Address::Base, 1000, &mut buf).unwrap();
+    let Ok(Event::Challenged { from, nonce }) = deliver(&mut b, &buf[..n], 1000)[0] else {
+        panic!()
+    };
+    let n = b.answer(from, nonce, 1010, &mut buf).unwrap();
+    let held = buf[..n].to_vec();
+    let first = wire(&mut b, Address::Broadcast, 1100, leader_state(1));
+    assert!(matches!(
+        deliver(&mut r, &first, 1100)[0],
+        Ok(Event::Message { .. })
+    ));
+    let second = wire(&mut b, Address::Robot(1), 1200, leader_state(2));
+    assert!(matches!(
+        deliver(&mut r, &second, 1200)[0],
+        Ok(Event::Message { .. })
+    ));
+    // Delivered late, within the challenge's lifetime: it links, and reopens nothing.
+    assert_eq!(
+        deliver(&mut r, &held, 1300),
+        vec![Ok(Event::Linked {
+            peer: Address::Base
+        })]
+    );
+    assert_eq!(deliver(&mut r, &first, 1400), vec![Err(Reject::Replay)]);
+    assert_eq!(deliver(&mut r, &second, 1400), vec![Err(Reject::Replay)]);
+}
