@@ -1,8 +1,9 @@
 //! The leader's range scanner: a planar lidar (`RAYS` beams over a full turn, `RANGE`
 //! metres) that sees the site as it is. It reports only hits on what the map does not
-//! hold: the base station ignores hits on mapped surfaces anyway, and leaving them out
-//! spares the simulator the casts on maps without anything unmapped. Hits are registered
-//! in the site frame from the leader's true pose (perfect registration).
+//! hold (where nothing on the site is nearer along the beam): the base station ignores
+//! hits on mapped surfaces anyway, and leaving them out spares the simulator the casts on
+//! maps without anything unmapped. Hits are registered in the site frame from the
+//! leader's true pose (perfect registration).
 
 use base_station::map::Map;
 use base_station::scenario::Scenario;
@@ -14,7 +15,6 @@ pub const RAYS: usize = 180;
 pub const RANGE: f64 = 8.0;
 
 pub struct Scanner {
-    known: Map,
     /// `None` when the site holds nothing the map does not.
     unmapped: Option<Map>,
 }
@@ -31,14 +31,12 @@ impl Scanner {
                     .collect(),
             )
         });
-        Self {
-            known: scenario.build_map(),
-            unmapped,
-        }
+        Self { unmapped }
     }
 
-    /// One scan from `at`: the points where a beam first meets something unmapped.
-    pub fn scan(&self, at: DVec2) -> Vec<DVec2> {
+    /// One scan from `at` over `site` (everything on it, mapped or not): the points where
+    /// a beam first meets something unmapped.
+    pub fn scan(&self, at: DVec2, site: &Map) -> Vec<DVec2> {
         let Some(unmapped) = &self.unmapped else {
             return Vec::new();
         };
@@ -49,7 +47,8 @@ impl Scanner {
             .filter_map(|k| {
                 let dir = DVec2::from_angle(k as f64 * std::f64::consts::TAU / RAYS as f64);
                 let d = unmapped.ray_cast(at, dir, RANGE);
-                let seen = d < RANGE && self.known.ray_cast(at, dir, d) >= d;
+                // The site holds that obstacle too: nothing nearer means the cast gives d.
+                let seen = d < RANGE && site.ray_cast(at, dir, d) >= d;
                 seen.then(|| at + dir * d)
             })
             .collect()

@@ -483,7 +483,7 @@ impl World {
         // Base station at 10 Hz, with the leader's scan of the moment.
         if t.is_multiple_of(PERIOD_US) {
             if let Some(at) = self.leader_position() {
-                let hits = self.scanner.scan(at);
+                let hits = self.scanner.scan(at, &self.map);
                 if !hits.is_empty() {
                     self.station.sense(&hits);
                 }

@@ -35,6 +35,17 @@ impl Map {
         }
     }
 
+    /// Adds an obstacle (one found on the way): an R-tree insertion, not a rebuild.
+    pub fn insert(&mut self, o: Obstacle) {
+        let [lo, hi] = o.bounds();
+        let entry = GeomWithData::new(
+            Rectangle::from_corners([lo.x, lo.y], [hi.x, hi.y]),
+            self.obstacles.len(),
+        );
+        self.obstacles.push(o);
+        self.index.insert(entry);
+    }
+
     pub fn obstacles(&self) -> &[Obstacle] {
         &self.obstacles
     }

@@ -231,9 +231,9 @@ impl BaseStation {
             "sensed obstacles the map does not hold"
         );
         self.planner.add_obstacles(&added);
-        let mut all = self.cfg.map.obstacles().to_vec();
-        all.extend_from_slice(self.perception.obstacles());
-        self.world = Map::new(all);
+        for o in added {
+            self.world.insert(o);
+        }
     }
 
     /// The obstacles sensed so far that the map does not hold.

@@ -164,9 +164,7 @@ struct Routing {
     s: f64,
     /// Discs found blocked (centre, radius).
     blocked: Vec<(DVec2, f64)>,
-    /// Obstacles sensed that the map does not hold, all of them (stamped into every grid
-    /// built), and those not yet checked against the route.
-    sensed: Vec<Obstacle>,
+    /// Obstacles sensed since the last check against the route.
     unchecked: Vec<Obstacle>,
     /// (time, progress) while nothing held the leader back.
     progress: VecDeque<(f64, f64)>,
@@ -182,19 +180,22 @@ pub struct PlanPose {
     pub heading: f64,
 }
 
-/// Whether any of `obstacles` comes within `clearance` of `route` beyond arc length `from`.
-fn blocks(obstacles: &[Obstacle], route: &Route, from: f64, clearance: f64) -> bool {
+/// The least distance from `obstacles` to `route` beyond arc length `from`, looking no
+/// farther than `reach` (∞ when nothing is that close).
+fn nearest_to_route(obstacles: &[Obstacle], route: &Route, from: f64, reach: f64) -> f64 {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for o in obstacles {
         let [a, b] = o.bounds();
-        lo = lo.min(a - clearance);
-        hi = hi.max(b + clearance);
+        lo = lo.min(a - reach);
+        hi = hi.max(b + reach);
     }
     route
         .sample(from, route.length() - from, 0.1)
         .iter()
         .filter(|p| p.cmpge(lo).all() && p.cmple(hi).all())
-        .any(|p| obstacles.iter().any(|o| o.nearest(*p).distance < clearance))
+        .flat_map(|p| obstacles.iter().map(|o| o.nearest(*p).distance))
+        .filter(|d| *d < reach)
+        .fold(f64::INFINITY, f64::min)
 }
 
 fn wrap(a: f64) -> f64 {
@@ -242,7 +243,6 @@ impl Planner {
             waypoint_arc: Vec::new(),
             s: 0.0,
             blocked: Vec::new(),
-            sensed: Vec::new(),
             unchecked: Vec::new(),
             progress: VecDeque::new(),
             replans: 0,
@@ -258,7 +258,8 @@ impl Planner {
     }
 
     /// Obstacles the map does not hold, sensed on the way: the route avoids them from now
-    /// on, and is planned again at the next step if one lies on the way ahead.
+    /// on, and is planned again at the next step if one lies on the way ahead. The map
+    /// given to later steps must hold them too (a grid built later is built from it).
     pub fn add_obstacles(&mut self, obstacles: &[Obstacle]) {
         let Some(routing) = self.routing.as_mut() else {
             return;
@@ -268,7 +269,6 @@ impl Planner {
                 planner.add_obstacle(o);
             }
         }
-        routing.sensed.extend_from_slice(obstacles);
         routing.unchecked.extend_from_slice(obstacles);
     }
 
@@ -501,19 +501,20 @@ impl Planner {
         // needs (the route's cost changed): plan again, at most once a second, since a
         // street with something parked in it narrows with every scan.
         let (hard, wide) = (routing.params.hard_clearance, routing.params.wide_clearance);
-        let route = routing.route.as_ref();
-        let blocked = route.is_some_and(|r| blocks(&routing.unchecked, r, routing.s, hard));
-        let narrowed = !blocked
-            && now_s - routing.last_attempt_s >= 1.0
-            && route.is_some_and(|r| blocks(&routing.unchecked, r, routing.s, wide));
-        if blocked || narrowed {
+        let nearest = routing.route.as_ref().map_or(f64::INFINITY, |r| {
+            nearest_to_route(&routing.unchecked, r, routing.s, wide)
+        });
+        let due = now_s - routing.last_attempt_s >= 1.0;
+        let blocked = nearest < hard;
+        // Until a narrowing check is due, what was sensed waits to be checked again.
+        if blocked || due {
             routing.unchecked.clear();
+        }
+        if blocked || (due && nearest < wide) {
             tracing::info!(blocked, "something unmapped on the way: planning again");
             routing.replans += 1;
             routing.route = None;
             self.plan_route(from, now_s, map);
-        } else if !narrowed && now_s - routing.last_attempt_s >= 1.0 {
-            routing.unchecked.clear();
         }
     }
 
@@ -534,11 +535,7 @@ impl Planner {
             {
                 points.push(from);
             }
-            let mut planner = RoutePlanner::new(map, &points, routing.params);
-            for o in &routing.sensed {
-                planner.add_obstacle(o);
-            }
-            routing.planner = Some(planner);
+            routing.planner = Some(RoutePlanner::new(map, &points, routing.params));
         }
         let Some(planner) = routing.planner.as_ref() else {
             return;
