@@ -1,5 +1,6 @@
 //! The firmware in QEMU: wall time and real-time factor of `paper-obstacles` with all three
-//! robots in QEMU, QEMU boot time, and instructions per control step on the MCU.
+//! robots in QEMU and with six (three more followers, a V), QEMU boot time, and
+//! instructions per control step on the MCU.
 //! `cargo bench -p hil-sim --bench qemu_speed` (needs qemu-system-arm and the firmware:
 //! `./scripts/build-firmware.sh`). Prints a table; one run is the measurement.
 //!
@@ -13,6 +14,39 @@ use std::time::Instant;
 use base_station::scenario::Scenario;
 use hil_sim::world::{Firmware, SimOptions, World};
 
+/// `paper-obstacles` with three more followers behind the start: six robots in a V.
+fn six_robots(text: &str) -> Scenario {
+    let mut t = text
+        .replace("name = \"paper-obstacles\"", "name = \"paper-obstacles-6\"")
+        .replace("shape = \"triangle\"", "shape = \"v\"");
+    for (id, x, y) in [(3, -5.0, -2.0), (4, -2.0, -5.0), (5, -7.0, -6.0)] {
+        t += &format!(
+            "\n[[robots]]\nid = {id}\nrole = \"follower\"\nstart = {{ x = {x:.1}, y = {y:.1}, heading_deg = 45.0 }}\n"
+        );
+    }
+    Scenario::parse(&t, "paper-obstacles-6").expect("the six-robot variant parses")
+}
+
+/// Boots and runs one scenario with every robot in QEMU; prints its speed.
+fn measure(scenario: Scenario) -> World {
+    let (name, n) = (scenario.name.clone(), scenario.robots.len());
+    let mut options = SimOptions::new(1);
+    options.firmware = Firmware::Qemu;
+    let boot = Instant::now();
+    let mut world = World::new(scenario, options).expect("the QEMUs boot");
+    let boot_s = boot.elapsed().as_secs_f64();
+    let run = Instant::now();
+    world.run().expect("the run completes");
+    let wall = run.elapsed().as_secs_f64();
+    let sim = world.t_us as f64 / 1e6;
+    println!("QEMU boot of {n} robots (spawn, configure): {boot_s:.3} s");
+    println!(
+        "{name}, {n} robots in QEMU: {sim:.1} s simulated in {wall:.2} s wall: {:.1}x real time",
+        sim / wall
+    );
+    world
+}
+
 fn main() {
     if !std::env::args().any(|a| a == "--bench") {
         return;
@@ -21,21 +55,9 @@ fn main() {
         "{}/../scenarios/paper-obstacles.toml",
         env!("CARGO_MANIFEST_DIR")
     );
-    let scenario = Scenario::load(std::path::Path::new(&path)).unwrap();
-    let mut options = SimOptions::new(1);
-    options.firmware = Firmware::Qemu;
-    let boot = Instant::now();
-    let mut world = World::new(scenario, options).expect("three QEMUs boot");
-    let boot_s = boot.elapsed().as_secs_f64();
-    let run = Instant::now();
-    world.run().expect("the run completes");
-    let wall = run.elapsed().as_secs_f64();
-    let sim = world.t_us as f64 / 1e6;
-    println!("QEMU boot of 3 robots (spawn, connect, configure): {boot_s:.3} s");
-    println!(
-        "paper-obstacles, 3 robots in QEMU: {sim:.1} s simulated in {wall:.2} s wall: {:.1}x real time",
-        sim / wall
-    );
+    let text = std::fs::read_to_string(&path).unwrap();
+    let world = measure(Scenario::parse(&text, &path).unwrap());
+    measure(six_robots(&text));
     println!(
         "{:<6} {:>8} {:>13} {:>8} {:>8} {:>16} {:>8}",
         "robot", "periods", "control step", "p99", "max", "radio rx/period", "p99"

@@ -25,13 +25,6 @@ impl fmt::Display for BrainError {
 
 impl std::error::Error for BrainError {}
 
-/// Frames a robot's radio rejected: the total, and by reason where the brain can tell.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct BrainRejects {
-    pub total: u32,
-    pub by_reason: Option<RejectCounts>,
-}
-
 pub trait Brain {
     /// Starts a step at `local_us` (the robot's own clock: µs since it booted): the radio
     /// bytes that arrived since the last step, then, with `sensors`, a control period.
@@ -45,7 +38,8 @@ pub trait Brain {
     fn step_finish(&mut self, tx: &mut Vec<u8>) -> Result<Option<MotorOutput>, BrainError>;
     /// The robot's mode, for logs and plots.
     fn mode(&self) -> RobotMode;
-    fn rejects(&self) -> BrainRejects;
+    /// Frames the robot's radio rejected since it booted, by reason.
+    fn rejects(&self) -> RejectCounts;
     /// SysTick counts of each control step, where the brain measures them (firmware).
     fn step_cycles(&self) -> Vec<u32> {
         Vec::new()
@@ -105,11 +99,7 @@ impl Brain for NativeBrain {
         self.node.controller().mode()
     }
 
-    fn rejects(&self) -> BrainRejects {
-        let r = self.node.link().stats().rejects;
-        BrainRejects {
-            total: r.total(),
-            by_reason: Some(r),
-        }
+    fn rejects(&self) -> RejectCounts {
+        self.node.link().stats().rejects
     }
 }

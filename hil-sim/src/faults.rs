@@ -8,11 +8,11 @@ use base_station::scenario::{FaultKind, FaultSpec};
 use control_core::controller::{MotorOutput, Sensors};
 use protocol::link::{Link, Timing};
 use protocol::messages::{LeaderState, Message, RobotMode, WirePose};
-use protocol::{Address, FleetKey, MAX_WIRE};
+use protocol::{Address, FleetKey, RejectCounts, MAX_WIRE};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::brain::{Brain, BrainError, BrainRejects};
+use crate::brain::{Brain, BrainError};
 use crate::radio::RadioParams;
 
 /// A controller that died: no frames, motors off.
@@ -28,8 +28,8 @@ impl Brain for DeadBrain {
     fn mode(&self) -> RobotMode {
         RobotMode::Idle
     }
-    fn rejects(&self) -> BrainRejects {
-        BrainRejects::default()
+    fn rejects(&self) -> RejectCounts {
+        RejectCounts::default()
     }
 }
 

@@ -1,18 +1,22 @@
 //! The QEMU brain: the real firmware ELF on an emulated Cortex-M4F (`mps2-an386`), one
-//! QEMU process per robot. The robot's radio UART is a socket carrying exactly the bytes
-//! the simulated radio delivers; its body UART is the lockstep link (`protocol::body`):
-//! the simulator sends the time and the sensors, the firmware answers with the motor
-//! duties once everything due by then has run. QEMU runs with `-icount` (deterministic
-//! instruction timing; SysTick then measures instructions), but the firmware's clock is
-//! the simulator's, so a run is reproducible and as fast as the firmware computes.
+//! QEMU process per robot. The lockstep link (`protocol::body`) carries everything: the
+//! simulator sends the time, the sensors and exactly the bytes the simulated radio
+//! delivered; the firmware answers with the bytes it transmitted and the motor duties once
+//! everything due by then has run. The link is two FIFOs the firmware opens through
+//! semihosting (a period's bytes in one host call each way). QEMU runs with `-icount`
+//! (deterministic instruction timing; SysTick then measures instructions), but the
+//! firmware's clock is the simulator's, so a run is reproducible and as fast as the
+//! firmware computes, whatever else the machine is doing.
 //!
 //! QEMU is killed when the brain is dropped (also on a panic) and when the harness process
 //! dies (`PR_SET_PDEATHSIG`). A firmware that crashes or hangs fails the run with its last
 //! defmt lines (decoded from semihosting output with the ELF's table).
 
 use std::collections::VecDeque;
+use std::fs::File;
 use std::io::{self, Read, Write};
-use std::os::unix::net::{UnixListener, UnixStream};
+use std::os::fd::AsRawFd;
+use std::os::unix::ffi::OsStrExt;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -22,11 +26,12 @@ use std::time::{Duration, Instant};
 use control_core::controller::{MotorOutput, Sensors};
 use protocol::body::{
     self, BodyConfig, BodySensors, FirmwareFault, FromMcu, Step, ToMcu, MAX_BODY_FRAME,
+    MAX_RADIO_CHUNK,
 };
 use protocol::messages::RobotMode;
-use protocol::{frame, FrameDecoder, Message};
+use protocol::{frame, FrameDecoder, Message, RejectCounts};
 
-use crate::brain::{Brain, BrainError, BrainRejects};
+use crate::brain::{Brain, BrainError};
 
 /// How long a firmware may take to answer one step (wall clock) before it counts as hung,
 /// unless the run says otherwise.
@@ -47,15 +52,17 @@ pub fn firmware_elf() -> PathBuf {
 pub struct QemuBrain {
     id: u16,
     child: Child,
-    radio: UnixStream,
-    body: UnixStream,
-    body_buf: Vec<u8>,
+    /// The directory holding the link's FIFOs (QEMU's working directory).
+    dir: PathBuf,
+    to_mcu: File,
+    from_mcu: File,
+    inbox: Vec<u8>,
     rx_written: u32,
     tx_read: u32,
     logs: Arc<Mutex<VecDeque<String>>>,
     scan: FrameDecoder,
     mode: RobotMode,
-    rejected: u32,
+    rejects: RejectCounts,
     /// SysTick counts of every control step (25 MHz virtual clock).
     step_cycles: Vec<u32>,
     /// SysTick counts spent receiving radio frames, per control period.
@@ -63,33 +70,44 @@ pub struct QemuBrain {
     timeout: Duration,
 }
 
-/// A Unix socket QEMU connects to as a client (bytes written before it connects would be
-/// lost the other way round). Unix sockets: QEMU writes a byte per write, and loopback TCP
-/// costs a packet per byte.
-fn listen(path: &Path) -> io::Result<UnixListener> {
-    let _ = std::fs::remove_file(path);
-    let l = UnixListener::bind(path)?;
-    l.set_nonblocking(true)?;
-    Ok(l)
+/// A FIFO the harness holds open for reading and writing: opening never blocks, and it
+/// stays valid whether or not QEMU has opened its end yet.
+fn fifo(path: &Path) -> io::Result<File> {
+    let c = std::ffi::CString::new(path.as_os_str().as_bytes())
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, "NUL in a temp path"))?;
+    // SAFETY: a valid NUL-terminated path.
+    if unsafe { libc::mkfifo(c.as_ptr(), 0o600) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    File::options().read(true).write(true).open(path)
 }
 
-fn accept(l: &UnixListener, child: &mut Child, deadline: Instant) -> Result<UnixStream, String> {
+/// Waits until `file` has bytes to read, in short polls so that a QEMU that exits is
+/// noticed at once; an error after `timeout`.
+fn wait_readable(file: &File, child: &mut Child, timeout: Duration) -> io::Result<()> {
+    let deadline = Instant::now() + timeout;
     loop {
-        match l.accept() {
-            Ok((s, _)) => {
-                s.set_nonblocking(false).map_err(|e| e.to_string())?;
-                return Ok(s);
+        let mut fd = libc::pollfd {
+            fd: file.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        // SAFETY: one valid pollfd.
+        let ready = unsafe { libc::poll(&mut fd, 1, 20) };
+        if ready > 0 {
+            return Ok(());
+        }
+        if ready < 0 {
+            let e = io::Error::last_os_error();
+            if e.kind() != io::ErrorKind::Interrupted {
+                return Err(e);
             }
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
-                if let Ok(Some(status)) = child.try_wait() {
-                    return Err(format!("QEMU exited before connecting ({status})"));
-                }
-                if Instant::now() > deadline {
-                    return Err("QEMU did not connect within 10 s".into());
-                }
-                std::thread::sleep(Duration::from_millis(2));
-            }
-            Err(e) => return Err(e.to_string()),
+        }
+        if let Ok(Some(_)) = child.try_wait() {
+            return Err(io::ErrorKind::UnexpectedEof.into());
+        }
+        if Instant::now() > deadline {
+            return Err(io::ErrorKind::TimedOut.into());
         }
     }
 }
@@ -159,35 +177,43 @@ impl QemuBrain {
                 elf.display()
             ))
         })?;
-        let dir = std::env::temp_dir();
+        let elf = std::fs::canonicalize(elf).map_err(|e| err(e.to_string()))?;
         // Unique per brain: several worlds may run in one process (tests in parallel).
         static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let tag = format!("sweeper-{}-{n}-{id}", std::process::id());
-        let (p0, p1) = (
-            dir.join(format!("{tag}-radio.sock")),
-            dir.join(format!("{tag}-body.sock")),
-        );
-        let (l0, l1) = (listen(&p0), listen(&p1));
-        let (l0, l1) = (
-            l0.map_err(|e| err(e.to_string()))?,
-            l1.map_err(|e| err(e.to_string()))?,
-        );
+        let dir = std::env::temp_dir().join(format!("sweeper-{}-{n}-{id}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).map_err(|e| err(format!("{}: {e}", dir.display())))?;
+        let fifos =
+            fifo(&dir.join("lockstep.in")).and_then(|i| Ok((i, fifo(&dir.join("lockstep.out"))?)));
+        let (to_mcu, from_mcu) = match fifos {
+            Ok(f) => f,
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&dir);
+                return Err(err(format!(
+                    "cannot make the lockstep FIFOs in {}: {e}",
+                    dir.display()
+                )));
+            }
+        };
         let mut cmd = Command::new("qemu-system-arm");
-        cmd.args(["-M", "mps2-an386", "-nographic", "-monitor", "none"])
-            .args(["-semihosting-config", "enable=on,target=native"])
-            .args(["-icount", "shift=5,align=off,sleep=off"])
-            .arg("-kernel")
-            .arg(elf)
-            .arg("-chardev")
-            .arg(format!("socket,id=radio,path={}", p0.display()))
-            .args(["-serial", "chardev:radio"])
-            .arg("-chardev")
-            .arg(format!("socket,id=body,path={}", p1.display()))
-            .args(["-serial", "chardev:body"])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit());
+        cmd.args([
+            "-M",
+            "mps2-an386",
+            "-nographic",
+            "-monitor",
+            "none",
+            "-serial",
+            "null",
+        ])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", "shift=5,align=off,sleep=off"])
+        .arg("-kernel")
+        .arg(&elf)
+        .current_dir(&dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit());
         // SAFETY: prctl is async-signal-safe; QEMU dies with the harness.
         unsafe {
             cmd.pre_exec(|| {
@@ -195,44 +221,34 @@ impl QemuBrain {
                 Ok(())
             });
         }
-        let mut child = cmd.spawn().map_err(|e| {
-            if e.kind() == io::ErrorKind::NotFound {
-                err("qemu-system-arm not found: install it (Debian/Ubuntu: `sudo apt-get install qemu-system-arm`)".into())
-            } else {
-                err(format!("cannot start QEMU: {e}"))
+        let mut child = match cmd.spawn() {
+            Ok(c) => c,
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&dir);
+                return Err(if e.kind() == io::ErrorKind::NotFound {
+                    err("qemu-system-arm not found: install it (Debian/Ubuntu: `sudo apt-get install qemu-system-arm`)".into())
+                } else {
+                    err(format!("cannot start QEMU: {e}"))
+                });
             }
-        })?;
+        };
         let logs = Arc::new(Mutex::new(VecDeque::new()));
         if let Some(out) = child.stdout.take() {
             log_reader(id, image, out, logs.clone());
         }
-        let deadline = Instant::now() + Duration::from_secs(10);
-        let radio = accept(&l0, &mut child, deadline).map_err(&err);
-        let body = accept(&l1, &mut child, deadline).map_err(&err);
-        let _ = std::fs::remove_file(&p0);
-        let _ = std::fs::remove_file(&p1);
-        let (radio, body) = match (radio, body) {
-            (Ok(r), Ok(b)) => (r, b),
-            (Err(e), _) | (_, Err(e)) => {
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(e);
-            }
-        };
-        let _ = body.set_read_timeout(Some(timeout));
-        let _ = radio.set_read_timeout(Some(timeout));
         let mut brain = Self {
             id,
             child,
-            radio,
-            body,
-            body_buf: Vec::new(),
+            dir,
+            to_mcu,
+            from_mcu,
+            inbox: Vec::new(),
             rx_written: 0,
             tx_read: 0,
             logs,
             scan: FrameDecoder::new(),
             mode: RobotMode::Idle,
-            rejected: 0,
+            rejects: RejectCounts::default(),
             step_cycles: Vec::new(),
             rx_cycles: Vec::new(),
             timeout,
@@ -243,9 +259,12 @@ impl QemuBrain {
             boot_count,
             key,
         });
-        brain.send_body(&config)?;
-        match brain.read_body()? {
-            FromMcu::Ready => Ok(brain),
+        let mut out = Vec::new();
+        push(&mut out, &config)?;
+        brain.send(&out)?;
+        let mut frame = brain.next_frame()?;
+        match body::decode::<FromMcu>(&mut frame) {
+            Ok(FromMcu::Ready) => Ok(brain),
             other => Err(brain.failure(&format!("expected Ready at boot, got {other:?}"))),
         }
     }
@@ -288,49 +307,53 @@ impl QemuBrain {
             }
             io::ErrorKind::UnexpectedEof
             | io::ErrorKind::ConnectionReset
-            | io::ErrorKind::BrokenPipe => "closed its UART (crashed?)".to_string(),
+            | io::ErrorKind::BrokenPipe => "stopped (crashed?)".to_string(),
             _ => format!("link failed: {e}"),
         };
         self.failure(&what)
     }
 
-    fn send_body(&mut self, msg: &ToMcu) -> Result<(), BrainError> {
-        let mut buf = [0u8; MAX_BODY_FRAME];
-        let n = body::encode(msg, &mut buf).map_err(|e| BrainError(format!("body frame: {e}")))?;
-        self.body
-            .write_all(&buf[..n])
-            .map_err(|e| self.io_failure(e))
+    fn send(&mut self, bytes: &[u8]) -> Result<(), BrainError> {
+        self.to_mcu.write_all(bytes).map_err(|e| self.io_failure(e))
     }
 
-    fn read_body(&mut self) -> Result<FromMcu, BrainError> {
-        let mut byte = [0u8; 64];
+    /// The next COBS frame from the firmware (its delimiter dropped).
+    fn next_frame(&mut self) -> Result<Vec<u8>, BrainError> {
+        let mut buf = [0u8; 4096];
         loop {
-            if let Some(end) = self.body_buf.iter().position(|b| *b == 0) {
-                let mut frame: Vec<u8> = self.body_buf.drain(..=end).collect();
-                match body::decode::<FromMcu>(&mut frame) {
-                    Ok(msg) => return Ok(msg),
-                    Err(_) => continue,
-                }
+            if let Some(end) = self.inbox.iter().position(|b| *b == 0) {
+                let mut frame: Vec<u8> = self.inbox.drain(..=end).collect();
+                frame.pop();
+                return Ok(frame);
             }
-            match self.body.read(&mut byte) {
-                Ok(0) => return Err(self.io_failure(io::ErrorKind::UnexpectedEof.into())),
-                Ok(n) => self.body_buf.extend_from_slice(&byte[..n]),
+            if let Err(e) = wait_readable(&self.from_mcu, &mut self.child, self.timeout) {
+                return Err(self.io_failure(e));
+            }
+            match self.from_mcu.read(&mut buf) {
+                Ok(n) => self.inbox.extend_from_slice(&buf[..n]),
                 Err(e) => return Err(self.io_failure(e)),
             }
         }
     }
 
-    /// Watches the robot's own frames for its telemetry (mode, rejects).
+    /// Watches the robot's own frames for its telemetry (its mode).
     fn scan_tx(&mut self, bytes: &[u8]) {
         for &b in bytes {
             if let Some(Ok(raw)) = self.scan.push(b) {
                 if let Ok((_, Message::Telemetry(t))) = frame::parse_unverified(raw) {
                     self.mode = t.mode;
-                    self.rejected = t.link.rejected;
                 }
             }
         }
     }
+}
+
+/// Appends a body message's COBS frame to `out`.
+fn push(out: &mut Vec<u8>, msg: &ToMcu) -> Result<(), BrainError> {
+    let mut buf = [0u8; MAX_BODY_FRAME];
+    let n = body::encode(msg, &mut buf).map_err(|e| BrainError(format!("body frame: {e}")))?;
+    out.extend_from_slice(&buf[..n]);
+    Ok(())
 }
 
 impl Brain for QemuBrain {
@@ -341,10 +364,11 @@ impl Brain for QemuBrain {
         sensors: Option<&Sensors>,
     ) -> Result<(), BrainError> {
         // The step first, then its radio bytes: the firmware moves its clock to the step's
-        // time and processes the bytes at that time, as the native brain does.
+        // time and processes the bytes at that time, as the native brain does. One write.
+        let rx_written = self.rx_written.wrapping_add(radio.len() as u32);
         let step = Step {
             time_us: local_us,
-            radio_rx_bytes: self.rx_written.wrapping_add(radio.len() as u32),
+            radio_rx_bytes: rx_written,
             sensors: sensors.map(|s| BodySensors {
                 ticks: s.ticks,
                 pose_fix: s
@@ -353,31 +377,38 @@ impl Brain for QemuBrain {
                 proximity: s.proximity,
             }),
         };
-        self.send_body(&ToMcu::Step(step))?;
-        if !radio.is_empty() {
-            self.radio
-                .write_all(radio)
-                .map_err(|e| self.io_failure(e))?;
-            self.rx_written = self.rx_written.wrapping_add(radio.len() as u32);
+        let mut out = Vec::with_capacity(64 + radio.len() * 2);
+        push(&mut out, &ToMcu::Step(step))?;
+        for chunk in radio.chunks(MAX_RADIO_CHUNK) {
+            push(&mut out, &ToMcu::Radio(chunk))?;
         }
+        self.send(&out)?;
+        self.rx_written = rx_written;
         Ok(())
     }
 
     fn step_finish(&mut self, tx: &mut Vec<u8>) -> Result<Option<MotorOutput>, BrainError> {
+        let start = tx.len();
         let done = loop {
-            match self.read_body()? {
-                FromMcu::Done(d) => break d,
-                FromMcu::Ready => continue,
+            let mut frame = self.next_frame()?;
+            match body::decode::<FromMcu>(&mut frame) {
+                Ok(FromMcu::Radio(bytes)) => tx.extend_from_slice(bytes),
+                Ok(FromMcu::Done(d)) => break d,
+                Ok(FromMcu::Ready) => continue,
+                Err(e) => return Err(self.failure(&format!("sent a malformed body frame ({e})"))),
             }
         };
-        let owed = done.radio_tx_bytes.wrapping_sub(self.tx_read) as usize;
-        let start = tx.len();
-        tx.resize(start + owed, 0);
-        if let Err(e) = self.radio.read_exact(&mut tx[start..]) {
-            return Err(self.io_failure(e));
+        let sent = (tx.len() - start) as u32;
+        if done.radio_tx_bytes.wrapping_sub(self.tx_read) != sent {
+            return Err(self.failure(&format!(
+                "counts {} radio bytes sent since the last step, the link carried {sent}",
+                done.radio_tx_bytes.wrapping_sub(self.tx_read)
+            )));
         }
         self.tx_read = done.radio_tx_bytes;
-        self.scan_tx(&tx[start..]);
+        self.rejects = done.rejects;
+        let bytes = tx[start..].to_vec();
+        self.scan_tx(&bytes);
         if !done.duty.iter().all(|d| d.is_finite()) {
             return Err(self.failure("sent a non-finite motor duty"));
         }
@@ -392,11 +423,8 @@ impl Brain for QemuBrain {
         self.mode
     }
 
-    fn rejects(&self) -> BrainRejects {
-        BrainRejects {
-            total: self.rejected,
-            by_reason: None,
-        }
+    fn rejects(&self) -> RejectCounts {
+        self.rejects
     }
 
     fn step_cycles(&self) -> Vec<u32> {
@@ -408,7 +436,9 @@ impl Brain for QemuBrain {
     }
 
     fn inject(&mut self, fault: FirmwareFault) -> Result<(), BrainError> {
-        self.send_body(&ToMcu::Inject(fault))
+        let mut out = Vec::new();
+        push(&mut out, &ToMcu::Inject(fault))?;
+        self.send(&out)
     }
 }
 
@@ -416,5 +446,6 @@ impl Drop for QemuBrain {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
     }
 }

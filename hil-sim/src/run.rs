@@ -19,17 +19,13 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
     world.run()?;
     let wall_time_s = wall.elapsed().as_secs_f64();
 
-    // Rejects by reason from every receiver that can tell them (the base station, native
-    // robots); the total also counts what firmware robots report in their telemetry.
+    // Rejects by reason from every receiver: the base station and each robot (a firmware
+    // robot reports its counts over the lockstep link).
     let mut rejects = world.station.rejects();
-    let mut total = rejects.total() as u64;
     for r in &world.robots {
-        let b = r.brain.rejects();
-        total += b.total as u64;
-        if let Some(by) = b.by_reason {
-            rejects.merge(&by);
-        }
+        rejects.merge(&r.brain.rejects());
     }
+    let total = rejects.total() as u64;
     let link = LinkReport {
         frames_sent: world.radio.stats.frames_sent,
         frames_delivered: world.radio.stats.frames_delivered,

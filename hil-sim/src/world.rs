@@ -382,12 +382,17 @@ impl World {
         Ok(())
     }
 
-    /// Robot `id` reboots: a fresh brain with the next boot count; the body rolls on.
+    /// Robot `id` reboots: a fresh brain with the next boot count and its clock from zero
+    /// (its first control period 100 ms from now); the body rolls on.
     fn reboot(&mut self, id: u16) -> Result<(), BrainError> {
+        let now = self.t_us;
         let Some(r) = self.robots.iter_mut().find(|r| r.id == id) else {
             return Ok(());
         };
         r.boot_count += 1;
+        r.phase_us = now;
+        // Fixes stamped before the boot: a booting robot is not listening.
+        r.fixes.clear();
         tracing::info!(robot = id, boot = r.boot_count, "fault: reboot");
         let leader = r.role == Role::Leader;
         r.brain = match self.options.firmware {

@@ -1,27 +1,35 @@
-//! The wire between a robot's MCU and its body when the body is simulated: the firmware
-//! in QEMU reaches encoders, motors and sensors through a second UART that the
-//! simulator serves, in lockstep. Postcard + COBS (postcard's own COBS support); not
-//! authenticated: it is a cable inside the robot, not a radio.
+//! The lockstep link between a robot's MCU and the simulator when the body is simulated:
+//! the firmware in QEMU reaches encoders, motors, sensors and its radio through it.
+//! Postcard + COBS (postcard's own COBS support); not authenticated: it is a cable inside
+//! the robot, not a radio (the radio's bytes ride in it unchanged, still authenticated).
 //!
 //! The simulator, not the wall clock, decides when time advances: every [`Step`] carries
-//! the simulated time, the firmware's clock jumps to it, and the firmware answers with
-//! [`Done`] once everything due by then has run. See `docs/firmware.md`.
+//! the simulated time, the firmware's clock jumps to it, the radio bytes that arrived by
+//! then follow in [`ToMcu::Radio`] chunks, and the firmware answers with what it
+//! transmitted ([`FromMcu::Radio`]) and [`Done`] once everything due by then has run. A
+//! period's bytes move in a few frames, not one by one. See `docs/firmware.md`.
 
 use serde::{Deserialize, Serialize};
 
-/// Largest body message on the wire.
-pub const MAX_BODY_FRAME: usize = 96;
+use crate::RejectCounts;
+
+/// Largest radio chunk in one body message.
+pub const MAX_RADIO_CHUNK: usize = 256;
+/// Largest body message on the wire (a radio chunk, COBS overhead included).
+pub const MAX_BODY_FRAME: usize = MAX_RADIO_CHUNK + 8;
 
 /// Simulator → MCU.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum ToMcu {
+pub enum ToMcu<'a> {
     /// At boot: what a real robot reads from its configuration flash page.
     Config(BodyConfig),
-    /// Advance to `time_us`, after the radio bytes counted in `radio_rx_bytes`.
+    /// Advance to `time_us`; the radio bytes up to `radio_rx_bytes` follow.
     Step(Step),
     /// Fault injection for the harness's own tests: make the firmware fail.
     Inject(FirmwareFault),
+    /// Radio bytes received, in order (at most [`MAX_RADIO_CHUNK`]).
+    Radio(&'a [u8]),
 }
 
 /// How a firmware under test is made to fail.
@@ -48,8 +56,8 @@ pub struct BodyConfig {
 pub struct Step {
     /// The firmware's clock from now on, µs since its boot.
     pub time_us: u64,
-    /// Radio bytes written to the radio UART so far: process them all before the time
-    /// moves (the two UARTs are two sockets; this orders them).
+    /// Radio bytes received since boot, once the [`ToMcu::Radio`] chunks that follow
+    /// this step are counted: all processed at `time_us`, before the timers due then.
     pub radio_rx_bytes: u32,
     /// Sensors, when a control period is due at this time.
     pub sensors: Option<BodySensors>,
@@ -67,9 +75,12 @@ pub struct BodySensors {
 /// MCU → simulator.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum FromMcu {
+pub enum FromMcu<'a> {
     /// Configured, tasks running.
     Ready,
+    /// Radio bytes transmitted, in order (at most [`MAX_RADIO_CHUNK`]), before the
+    /// step's [`Done`].
+    Radio(&'a [u8]),
     Done(Done),
 }
 
@@ -77,7 +88,8 @@ pub enum FromMcu {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Done {
     pub time_us: u64,
-    /// Radio bytes written to the radio UART so far.
+    /// Radio bytes transmitted since boot (the [`FromMcu::Radio`] chunks before this
+    /// one included).
     pub radio_tx_bytes: u32,
     pub duty: [f32; 2],
     /// Whether a control period ran in this step.
@@ -87,6 +99,8 @@ pub struct Done {
     /// SysTick counts spent receiving radio bytes (deframing, verifying, decoding) in this
     /// step.
     pub rx_cycles: u32,
+    /// Frames rejected since boot, by reason.
+    pub rejects: RejectCounts,
 }
 
 /// Encodes a body message as COBS bytes ending in 0x00.

@@ -109,7 +109,7 @@ impl core::fmt::Display for Reject {
 }
 
 /// Counts of rejected frames, one per [`Reject`] reason.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RejectCounts(pub [u32; Reject::ALL.len()]);
 

@@ -1,14 +1,20 @@
 //! The real firmware ELF in QEMU, one per robot, lockstep with the simulator: the paper's
-//! bounds, agreement with the native control core, and a crash or hang that fails the run
-//! with a clear message instead of hanging it. Needs `qemu-system-arm` and the firmware
+//! bounds, runs identical to the native control core's (under CPU load, on a lossy link,
+//! with faults, with six robots), and a crash or hang that fails the run with a clear
+//! message instead of hanging it. Needs `qemu-system-arm` and the firmware
 //! (`./scripts/build-firmware.sh`); `./scripts/test-all.sh` provides both.
 
 mod common;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
-use common::{assert_paper_bounds, shipped};
+use base_station::scenario::{FaultKind, FaultSpec, Scenario};
+use common::{assert_paper_bounds, generate, shipped};
+use hil_sim::report::Report;
 use hil_sim::run::simulate;
+use hil_sim::trace::write_csv;
 use hil_sim::world::{Firmware, SimOptions, World};
 use protocol::body::FirmwareFault;
 
@@ -18,42 +24,164 @@ fn qemu(seed: u64) -> SimOptions {
     o
 }
 
-/// QEMU and native runs of one scenario: both meet the bounds and the follower
-/// trajectories agree within 1 mm at every sample (they are in fact identical: the same
-/// f32 code, micromath everywhere, on both targets; events happen at the same simulated
-/// times).
-fn qemu_matches_native(name: &str) {
-    let (native, nw) = simulate(shipped(name), SimOptions::new(1)).expect("native run");
-    let (q, qw) = simulate(shipped(name), qemu(1)).unwrap_or_else(|e| panic!("QEMU run: {e}"));
-    println!("{}", serde_json::to_string_pretty(&q).unwrap());
-    assert_eq!(q.firmware, "qemu");
-    assert_paper_bounds(&q);
-    assert_eq!(native.transformations, q.transformations);
-    let mut worst = 0.0f64;
-    for (a, b) in nw.recorder.samples.iter().zip(&qw.recorder.samples) {
-        for (ra, rb) in a.robots.iter().zip(&b.robots) {
-            worst = worst.max((ra.x - rb.x).hypot(ra.y - rb.y));
+/// Busy threads beside a run, until dropped: a CI machine is never quiet.
+struct CpuHogs {
+    stop: Arc<AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl CpuHogs {
+    fn start(n: usize) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let threads = (0..n)
+            .map(|_| {
+                let stop = stop.clone();
+                std::thread::spawn(move || {
+                    let mut x = 0u64;
+                    while !stop.load(Ordering::Relaxed) {
+                        x = std::hint::black_box(
+                            x.wrapping_mul(6364136223846793005).wrapping_add(1),
+                        );
+                    }
+                })
+            })
+            .collect();
+        Self { stop, threads }
+    }
+}
+
+impl Drop for CpuHogs {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
         }
     }
-    println!("{name}: largest native/QEMU position difference {worst:e} m");
-    assert_eq!(nw.recorder.samples.len(), qw.recorder.samples.len());
-    assert!(worst <= 1e-3, "{name}: trajectories differ by {worst} m");
+}
+
+/// Everything a run produced that must not depend on the brain: the report without the
+/// wall time and the brain's name, and the trace (every robot at every sample, as CSV).
+fn outcome(report: &Report, world: &World) -> (serde_json::Value, String) {
+    let mut json = serde_json::to_value(report).expect("reports serialize");
+    let fields = json.as_object_mut().expect("an object");
+    fields.remove("wall_time_s");
+    fields.remove("firmware");
+    let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
+    let mut csv = Vec::new();
+    write_csv(&world.recorder, &roles, &mut csv).expect("trace");
+    (json, String::from_utf8(csv).expect("utf-8"))
+}
+
+/// The QEMU run of `scenario` is identical to the native one: every report field but the
+/// wall time, every trajectory sample, bit for bit. Returns the QEMU report.
+fn assert_identical(scenario: Scenario, seed: u64) -> Report {
+    let name = scenario.name.clone();
+    let (native, nw) = simulate(scenario.clone(), SimOptions::new(seed)).expect("native run");
+    let (q, qw) =
+        simulate(scenario, qemu(seed)).unwrap_or_else(|e| panic!("{name}: QEMU run: {e}"));
+    assert_eq!(q.firmware, "qemu");
+    let (n_json, n_trace) = outcome(&native, &nw);
+    let (q_json, q_trace) = outcome(&q, &qw);
+    if let Some((i, (a, b))) = n_trace
+        .lines()
+        .zip(q_trace.lines())
+        .enumerate()
+        .find(|(_, (a, b))| a != b)
+    {
+        panic!(
+            "{name}, seed {seed}: traces differ first at line {}:\n native {a}\n qemu   {b}",
+            i + 1
+        );
+    }
+    assert_eq!(n_trace.len(), q_trace.len(), "{name}: trace lengths");
+    assert_eq!(n_json, q_json, "{name}, seed {seed}: reports differ");
     let cycles: Vec<u32> = qw
         .robots
         .iter()
         .flat_map(|r| r.brain.step_cycles())
         .collect();
     assert!(!cycles.is_empty(), "control steps were measured");
+    q
 }
 
+/// Both paper scenarios: the bounds, and the QEMU run identical to the native one (the
+/// same f32 code, micromath everywhere, on both targets; the lockstep link makes every
+/// event happen at the same simulated time).
 #[test]
 fn paper_obstacles_in_qemu() {
-    qemu_matches_native("paper-obstacles");
+    assert_paper_bounds(&assert_identical(shipped("paper-obstacles"), 1));
 }
 
 #[test]
 fn paper_passage_in_qemu() {
-    qemu_matches_native("paper-passage");
+    assert_paper_bounds(&assert_identical(shipped("paper-passage"), 1));
+}
+
+/// Nothing in the lockstep depends on the wall clock: with busy threads on every core,
+/// `QEMU_LOAD_RUNS` (default 20) consecutive runs are each identical to the native run.
+#[test]
+fn identical_to_native_under_cpu_load() {
+    let runs: u64 = std::env::var("QEMU_LOAD_RUNS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(20);
+    let _hogs = CpuHogs::start(4);
+    for run in 0..runs {
+        let started = std::time::Instant::now();
+        assert_identical(shipped("paper-obstacles"), 1 + run % 3);
+        println!(
+            "run {run}: identical ({:.1} s)",
+            started.elapsed().as_secs_f64()
+        );
+    }
+}
+
+/// 20 % loss, 150 ms latency, ±50 ms jitter: frames cross and arrive late, still
+/// identical.
+#[test]
+fn identical_to_native_on_a_lossy_jittery_link() {
+    let mut s = shipped("paper-obstacles");
+    s.link.loss = 0.2;
+    s.link.latency_ms = 150.0;
+    s.link.jitter_ms = 50.0;
+    let r = assert_identical(s, 1);
+    assert!(r.link.frames_rejected > 0 || r.link.frames_delivered < r.link.frames_sent);
+}
+
+/// Reboots (a new QEMU mid-run), a base-station restart, a loss burst, corruption and a
+/// replaying attacker: identical, rejects by reason included.
+#[test]
+fn identical_to_native_with_faults_injected() {
+    let mut s = shipped("paper-passage");
+    let fault = |at_s, kind, duration_s, robot, value| FaultSpec {
+        at_s,
+        kind,
+        duration_s,
+        robot,
+        value,
+    };
+    s.faults = vec![
+        fault(8.0, FaultKind::Reboot, None, Some(1), None),
+        fault(15.0, FaultKind::LossBurst, Some(1.5), None, None),
+        fault(20.0, FaultKind::Corruption, Some(5.0), None, Some(0.002)),
+        fault(22.0, FaultKind::ReplayAttacker, Some(10.0), None, Some(2.0)),
+        fault(30.0, FaultKind::BaseRestart, None, None, None),
+    ];
+    let r = assert_identical(s, 3);
+    println!("{:?}", r.link);
+    assert!(
+        r.link.rejects_by_reason.len() >= 2,
+        "faults produced rejects of several kinds"
+    );
+}
+
+/// Six robots (a V of five followers) across a generated bin field.
+#[test]
+fn identical_to_native_with_six_robots() {
+    let g = generate::bin_field(2, 40, 5);
+    let s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
+    assert_eq!(s.robots.len(), 6);
+    assert_identical(s, 2);
 }
 
 fn fail_one_robot(fault: FirmwareFault) -> String {
@@ -82,10 +210,7 @@ fn a_crashing_firmware_fails_the_run_with_its_last_logs() {
         msg.contains("panic: panicked at"),
         "the panic message is shown: {msg}"
     );
-    assert!(
-        msg.contains("exit status: 101") || msg.contains("closed its UART"),
-        "{msg}"
-    );
+    assert!(msg.contains("exit status: 101"), "{msg}");
 }
 
 #[test]

@@ -23,10 +23,10 @@ mod tasks;
 #[cfg(feature = "board-qemu")]
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    let board = board::init();
-    board::run(move |spawner| {
+    board::init();
+    board::run(|spawner| {
         // The body link delivers the configuration, then starts the other tasks.
-        spawner.spawn(board::body_task(spawner, board).unwrap());
+        spawner.spawn(board::body_task(spawner).unwrap());
     })
 }
 

@@ -226,8 +226,3 @@ pub fn feed_watchdog() {
         }
     });
 }
-
-/// Every radio byte may be processed at once on real hardware.
-pub async fn radio_allowance() -> usize {
-    usize::MAX
-}

@@ -1,10 +1,11 @@
-//! The QEMU board, `mps2-an386` (Cortex-M4F): the radio on UART0, the simulated body on
-//! UART1 (lockstep link), the simulator's clock as time driver, a WFI executor, defmt over
-//! semihosting (QEMU's stdout), exit codes through semihosting.
+//! The QEMU board, `mps2-an386` (Cortex-M4F): the simulated body and the radio behind one
+//! lockstep link (semihosting FIFOs), the simulator's clock as time driver, a WFI
+//! executor, defmt over semihosting (QEMU's stdout), exit codes through semihosting.
 
 mod clock;
 mod executor;
-mod uart;
+mod link;
+mod radio;
 
 use core::cell::Cell;
 use core::sync::atomic::Ordering;
@@ -15,95 +16,34 @@ use control_core::Pose;
 use cortex_m::peripheral::syst::SystClkSource;
 use critical_section::Mutex;
 use embassy_executor::Spawner;
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::pipe::Pipe;
-use embedded_io_async::{Read, Write};
-use heapless::Vec;
-use protocol::body::{self, BodySensors, Done, FirmwareFault, FromMcu, ToMcu, MAX_BODY_FRAME};
+use embassy_futures::yield_now;
+use protocol::body::{BodySensors, Done, FirmwareFault, FromMcu, ToMcu, MAX_RADIO_CHUNK};
 
 use crate::robot::{self, Config};
+use link::Link;
 
 use defmt_semihosting as _;
 
 pub use executor::run;
 
-pub type RadioRx = uart::Rx;
-pub type RadioTx = uart::Tx;
-
-static RADIO_PIPE: Pipe<CriticalSectionRawMutex, { uart::RX_BUFFER }> = Pipe::new();
-static BODY_PIPE: Pipe<CriticalSectionRawMutex, { uart::RX_BUFFER }> = Pipe::new();
-static RADIO_UART: uart::Port = uart::Port::new(0x4000_4000, &RADIO_PIPE);
-static BODY_UART: uart::Port = uart::Port::new(0x4000_5000, &BODY_PIPE);
+pub type RadioRx = radio::Rx;
+pub type RadioTx = radio::Tx;
 
 /// What the body link last reported, and what the motors were last told.
 static SENSORS: Mutex<Cell<Option<BodySensors>>> = Mutex::new(Cell::new(None));
 static DUTY: Mutex<Cell<[f32; 2]>> = Mutex::new(Cell::new([0.0; 2]));
 /// When the control task's next period is due, µs.
 static NEXT_TICK_US: Mutex<Cell<u64>> = Mutex::new(Cell::new(u64::MAX));
-/// Radio bytes the current step lets through (those that arrived before its time).
-static RADIO_ALLOWED: Mutex<Cell<u32>> = Mutex::new(Cell::new(0));
-static RADIO_GATE: embassy_sync::signal::Signal<CriticalSectionRawMutex, ()> =
-    embassy_sync::signal::Signal::new();
-
-/// How many radio bytes may be processed now; waits for the next step when none.
-pub async fn radio_allowance() -> usize {
-    loop {
-        let allowed = critical_section::with(|cs| RADIO_ALLOWED.borrow(cs).get());
-        let left = allowed.wrapping_sub(robot::RADIO_RX_BYTES.load(Ordering::Acquire));
-        if left > 0 && left < u32::MAX / 2 {
-            return left as usize;
-        }
-        RADIO_GATE.wait().await;
-    }
-}
 
 defmt::timestamp!("{=u64:us}", embassy_time::Instant::now().as_micros());
 
-pub struct Board {
-    radio: (uart::Rx, uart::Tx),
-    body: (uart::Rx, uart::Tx),
-}
-
-#[derive(Clone, Copy)]
-struct Irq(u16);
-
-// SAFETY: mps2-an386 external interrupt numbers.
-unsafe impl cortex_m::interrupt::InterruptNumber for Irq {
-    fn number(self) -> u16 {
-        self.0
-    }
-}
-
-const UART0_RX: u16 = 0;
-const UART1_RX: u16 = 2;
-
-pub fn init() -> Board {
+pub fn init() {
     let mut core = cortex_m::Peripherals::take().expect("first and only take");
     // SysTick free-running: it measures a control step (25 MHz, virtual under -icount).
     core.SYST.set_clock_source(SystClkSource::Core);
     core.SYST.set_reload(0x00FF_FFFF);
     core.SYST.clear_current();
     core.SYST.enable_counter();
-    RADIO_UART.enable();
-    BODY_UART.enable();
-    // SAFETY: the handlers below only touch their UART and its pipe.
-    unsafe {
-        cortex_m::peripheral::NVIC::unmask(Irq(UART0_RX));
-        cortex_m::peripheral::NVIC::unmask(Irq(UART1_RX));
-    }
-    Board {
-        radio: (uart::Rx(&RADIO_UART), uart::Tx(&RADIO_UART)),
-        body: (uart::Rx(&BODY_UART), uart::Tx(&BODY_UART)),
-    }
-}
-
-#[cortex_m_rt::exception]
-unsafe fn DefaultHandler(irqn: i16) {
-    match irqn as u16 {
-        UART0_RX => RADIO_UART.on_rx_interrupt(),
-        UART1_RX => BODY_UART.on_rx_interrupt(),
-        _ => {}
-    }
 }
 
 /// SysTick's count now (it counts down).
@@ -151,61 +91,43 @@ impl Body {
     }
 }
 
-async fn read_frame(
-    rx: &mut uart::Rx,
-    frame: &mut Vec<u8, { MAX_BODY_FRAME + 2 }>,
-) -> Option<ToMcu> {
-    frame.clear();
-    let mut byte = [0u8];
-    loop {
-        let _ = rx.read(&mut byte).await;
-        if frame.push(byte[0]).is_err() {
-            defmt::warn!("body frame too long: dropped");
-            frame.clear();
-            continue;
-        }
-        if byte[0] == 0 {
-            return match body::decode::<ToMcu>(frame) {
-                Ok(msg) => Some(msg),
-                Err(_) => {
-                    defmt::warn!("malformed body frame: dropped");
-                    None
-                }
-            };
-        }
+/// Moves what the transmit task wrote into the link, in chunks.
+fn drain_radio(link: &mut Link) {
+    let mut chunk = [0u8; MAX_RADIO_CHUNK];
+    while let Ok(n) = radio::TRANSMITTED.try_read(&mut chunk) {
+        link.send(&FromMcu::Radio(&chunk[..n]));
     }
 }
 
-async fn send(tx: &mut uart::Tx, msg: &FromMcu) {
-    let mut buf = [0u8; MAX_BODY_FRAME];
-    if let Ok(n) = body::encode(msg, &mut buf) {
-        let _ = tx.write_all(&buf[..n]).await;
-    }
-}
-
-/// The lockstep link to the simulated body: configuration at boot, then one `Step` in,
-/// one `Done` out. The clock moves to the step's time, the radio bytes that came before it
-/// are processed, then the timers due by then fire (a control period), then `Done`.
+/// The lockstep link to the simulated body: configuration at boot, then per step: `Step`
+/// and the radio bytes that arrived by its time in; the clock moves to the step's time,
+/// those bytes are processed, the timers due by then fire (a control period); then the
+/// bytes transmitted and `Done` out.
 #[embassy_executor::task]
-pub async fn body_task(spawner: Spawner, board: Board) {
-    let Board { radio, body } = board;
-    let (mut rx, mut tx) = body;
-    let mut frame = Vec::new();
-    loop {
-        if let Some(ToMcu::Config(c)) = read_frame(&mut rx, &mut frame).await {
-            robot::configure(Config {
-                id: c.id,
-                leader: c.leader,
-                boot_count: c.boot_count,
-                key: c.key,
-            });
-            break;
+pub async fn body_task(spawner: Spawner) {
+    let mut link = Link::open();
+    let mut frame = [0u8; protocol::body::MAX_BODY_FRAME + 2];
+    let config = loop {
+        if let Some(ToMcu::Config(c)) = link.receive(&mut frame) {
+            break c;
         }
+    };
+    robot::configure(Config {
+        id: config.id,
+        leader: config.leader,
+        boot_count: config.boot_count,
+        key: config.key,
+    });
+    crate::tasks::start(spawner, radio::Rx, radio::Tx, Body);
+    // The tasks start at boot time, before the first step moves the clock.
+    while critical_section::with(|cs| NEXT_TICK_US.borrow(cs).get()) == u64::MAX {
+        yield_now().await;
     }
-    crate::tasks::start(spawner, radio.0, radio.1, Body);
-    send(&mut tx, &FromMcu::Ready).await;
+    link.send(&FromMcu::Ready);
+    link.flush();
+    let mut received = 0u32;
     loop {
-        let step = match read_frame(&mut rx, &mut frame).await {
+        let step = match link.receive(&mut frame) {
             Some(ToMcu::Step(step)) => step,
             Some(ToMcu::Inject(FirmwareFault::Panic)) => panic!("injected by the harness"),
             Some(ToMcu::Inject(FirmwareFault::Hang)) => {
@@ -213,13 +135,27 @@ pub async fn body_task(spawner: Spawner, board: Board) {
                 #[allow(clippy::empty_loop)]
                 loop {}
             }
-            _ => continue,
+            Some(other) => {
+                defmt::warn!("unexpected body message outside a step: {}", other);
+                continue;
+            }
+            None => continue,
         };
         clock::set(step.time_us);
-        critical_section::with(|cs| RADIO_ALLOWED.borrow(cs).set(step.radio_rx_bytes));
-        RADIO_GATE.signal(());
-        while robot::RADIO_RX_BYTES.load(Ordering::Acquire) < step.radio_rx_bytes {
-            embassy_futures::yield_now().await;
+        while received != step.radio_rx_bytes {
+            match link.receive(&mut frame) {
+                Some(ToMcu::Radio(bytes)) => {
+                    radio::RECEIVED.write_all(bytes).await;
+                    received = received.wrapping_add(bytes.len() as u32);
+                }
+                _ => {
+                    defmt::error!("the step's radio bytes are missing");
+                    received = step.radio_rx_bytes;
+                }
+            }
+        }
+        while robot::RADIO_RX_BYTES.load(Ordering::Acquire) != received {
+            yield_now().await;
         }
         if step.sensors.is_some() {
             critical_section::with(|cs| SENSORS.borrow(cs).set(step.sensors));
@@ -229,14 +165,18 @@ pub async fn body_task(spawner: Spawner, board: Board) {
         clock::wake_due();
         if due {
             while robot::CONTROL_TICKS.load(Ordering::Acquire) == before {
-                embassy_futures::yield_now().await;
+                yield_now().await;
             }
         }
         // Let anything else the new time woke (the watchdog) run, and the transmit task
         // write out what this step produced.
-        embassy_futures::yield_now().await;
-        while !crate::tasks::radio_idle() {
-            embassy_futures::yield_now().await;
+        yield_now().await;
+        loop {
+            drain_radio(&mut link);
+            if crate::tasks::radio_idle() && radio::TRANSMITTED.is_empty() {
+                break;
+            }
+            yield_now().await;
         }
         let done = Done {
             time_us: step.time_us,
@@ -245,8 +185,10 @@ pub async fn body_task(spawner: Spawner, board: Board) {
             ticked: due,
             step_cycles: robot::STEP_CYCLES.load(Ordering::Acquire),
             rx_cycles: robot::RX_CYCLES.swap(0, Ordering::AcqRel),
+            rejects: robot::with_node(|node| node.link().stats().rejects).unwrap_or_default(),
         };
-        send(&mut tx, &FromMcu::Done(done)).await;
+        link.send(&FromMcu::Done(done));
+        link.flush();
     }
 }
 
