@@ -206,10 +206,8 @@ fn a_crashing_firmware_fails_the_run_with_its_last_logs() {
     let msg = fail_one_robot(FirmwareFault::Panic);
     println!("{msg}");
     assert!(msg.contains("robot 1"), "{msg}");
-    assert!(
-        msg.contains("panic: panicked at"),
-        "the panic message is shown: {msg}"
-    );
+    // The panic handler logs "panic" only (its message and location cost ~7 KiB of flash).
+    assert!(msg.contains("ERROR panic"), "the panic is logged: {msg}");
     assert!(msg.contains("exit status: 101"), "{msg}");
 }
 

@@ -8,7 +8,9 @@ use control_core::config::{RobotConfig, Role};
 use control_core::node::{Identity, RobotNode};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
+use embassy_time::Instant;
 use protocol::FleetKey;
+use static_cell::StaticCell;
 
 /// Who this robot is: from the configuration page (see `docs/firmware.md`).
 #[derive(Clone, Copy)]
@@ -19,7 +21,10 @@ pub struct Config {
     pub key: [u8; 32],
 }
 
-static NODE: Mutex<CriticalSectionRawMutex, RefCell<Option<RobotNode>>> =
+/// The node's storage, zeroed (`.bss`): an `Option<RobotNode>` in a static would put
+/// its ~2 KiB `None` image in flash.
+static NODE_CELL: StaticCell<RobotNode> = StaticCell::new();
+static NODE: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut RobotNode>>> =
     Mutex::new(RefCell::new(None));
 
 /// Control periods run so far (the watchdog and the lockstep link watch it).
@@ -44,6 +49,10 @@ pub fn configure(c: Config) {
         boot_count: c.boot_count,
     };
     let node = RobotNode::new(identity, FleetKey::from_bytes(&c.key), RobotConfig::DEFAULT);
+    let Some(node) = NODE_CELL.try_init(node) else {
+        defmt::error!("configured twice: ignored");
+        return;
+    };
     NODE.lock(|n| *n.borrow_mut() = Some(node));
     defmt::info!(
         "robot {} ({}) boot {}",
@@ -55,7 +64,12 @@ pub fn configure(c: Config) {
 
 /// Runs `f` on the node, if configured.
 pub fn with_node<R>(f: impl FnOnce(&mut RobotNode) -> R) -> Option<R> {
-    NODE.lock(|n| n.borrow_mut().as_mut().map(f))
+    NODE.lock(|n| n.borrow_mut().as_mut().map(|node| f(node)))
+}
+
+/// The node's clock: milliseconds since boot, wrapping at 2³² (49 days).
+pub fn millis(now: Instant) -> u32 {
+    control_core::math::micros_to_millis(now.as_micros())
 }
 
 pub fn count(counter: &AtomicU32, n: usize) {

@@ -22,7 +22,7 @@ pub async fn control_task(mut body: Body) {
         let start = board::cycles();
         let mut tx: Vec<u8, 256> = Vec::new();
         let out = robot::with_node(|node| {
-            node.tick(now.as_millis() as u32, &sensors, &mut |bytes| {
+            node.tick(robot::millis(now), &sensors, &mut |bytes| {
                 let _ = tx.extend_from_slice(bytes);
             })
         })

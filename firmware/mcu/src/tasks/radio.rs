@@ -19,7 +19,7 @@ pub async fn radio_rx_task(mut rx: RadioRx) {
                 continue;
             }
         };
-        let now_ms = Instant::now().as_millis() as u32;
+        let now_ms = robot::millis(Instant::now());
         let mut answers: Vec<u8, 256> = Vec::new();
         let started = board::cycles();
         robot::with_node(|node| {

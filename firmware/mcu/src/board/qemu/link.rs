@@ -10,7 +10,7 @@ use semihosting::fs::File;
 use semihosting::io::{Read, Write};
 
 /// Bytes asked of the host per read, and collected per write.
-const BUFFER: usize = 1024;
+const BUFFER: usize = 512;
 
 pub struct Link {
     input: File,

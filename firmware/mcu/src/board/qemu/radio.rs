@@ -7,8 +7,8 @@ use core::convert::Infallible;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::pipe::Pipe;
 
-/// Bytes buffered each way (a period's frames fit several times over).
-pub const BUFFER: usize = 1024;
+/// Bytes buffered each way (a period's frames fit; more waits for the reader).
+pub const BUFFER: usize = 512;
 
 /// Bytes the simulated radio delivered, waiting for the receive task.
 pub static RECEIVED: Pipe<CriticalSectionRawMutex, BUFFER> = Pipe::new();
