@@ -162,14 +162,8 @@ fn log_reader(
 
 impl QemuBrain {
     /// Boots one robot's firmware and configures it (what its flash page holds).
-    pub fn spawn(
-        elf: &Path,
-        id: u16,
-        leader: bool,
-        boot_count: u32,
-        key: [u8; 32],
-        timeout: Duration,
-    ) -> Result<Self, BrainError> {
+    pub fn spawn(elf: &Path, config: BodyConfig, timeout: Duration) -> Result<Self, BrainError> {
+        let id = config.id;
         let err = |m: String| BrainError(format!("robot {id}: {m}"));
         let image = std::fs::read(elf).map_err(|e| {
             err(format!(
@@ -253,12 +247,7 @@ impl QemuBrain {
             rx_cycles: Vec::new(),
             timeout,
         };
-        let config = ToMcu::Config(BodyConfig {
-            id,
-            leader,
-            boot_count,
-            key,
-        });
+        let config = ToMcu::Config(config);
         let mut out = Vec::new();
         push(&mut out, &config)?;
         brain.send(&out)?;

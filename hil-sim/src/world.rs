@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use base_station::map::Map;
 use base_station::scenario::{Role, Scenario};
-use base_station::station::{BaseStation, StationConfig};
+use base_station::station::{nonce_base, BaseStation, StationConfig};
 use control_core::config::{self, RobotConfig};
 use control_core::controller::{MotorOutput, Sensors};
 use control_core::kinematics::DiffDrive;
@@ -16,6 +16,7 @@ use control_core::odometry::PoseFixSample;
 use control_core::pid::PidGains;
 use control_core::Pose;
 use glam::DVec2;
+use protocol::body::BodyConfig;
 use protocol::frame::{self, Address};
 use protocol::FleetKey;
 use rand::{Rng, SeedableRng};
@@ -115,8 +116,54 @@ pub fn sim_key_bytes(seed: u64) -> [u8; 32] {
     key
 }
 
+/// The simulated world's wall clock at t = 0, ms since the Unix epoch (2026-01-01).
+const SIM_EPOCH_MS: u64 = 1_767_225_600_000;
+
 pub fn sim_key(seed: u64) -> FleetKey {
     FleetKey::from_bytes(&sim_key_bytes(seed))
+}
+
+/// What a robot's noise source gives at one boot: from the seed, the id and the boot.
+fn boot_entropy(seed: u64, id: u16, boot_count: u32) -> u32 {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (id as u64) << 32 ^ boot_count as u64);
+    rng.random()
+}
+
+/// A robot's controller at boot: native, or its firmware in a fresh QEMU.
+fn boot_brain(
+    options: &SimOptions,
+    elf: &std::path::Path,
+    cfg: RobotConfig,
+    id: u16,
+    role: Role,
+    boot_count: u32,
+) -> Result<Box<dyn Brain>, BrainError> {
+    let entropy = boot_entropy(options.seed, id, boot_count);
+    Ok(match options.firmware {
+        Firmware::Native => {
+            let identity = Identity {
+                id,
+                role: match role {
+                    Role::Leader => config::Role::Leader,
+                    Role::Follower => config::Role::Follower,
+                },
+                boot_count,
+                entropy,
+            };
+            Box::new(NativeBrain::new(identity, sim_key(options.seed), cfg))
+        }
+        Firmware::Qemu => Box::new(crate::qemu::QemuBrain::spawn(
+            elf,
+            BodyConfig {
+                id,
+                leader: role == Role::Leader,
+                boot_count,
+                entropy,
+                key: sim_key_bytes(options.seed),
+            },
+            options.step_timeout,
+        )?),
+    })
 }
 
 pub struct SimRobot {
@@ -196,7 +243,7 @@ impl World {
             StationConfig::from_scenario(&scenario),
             key.clone(),
             master.random(),
-            master.random(),
+            nonce_base(SIM_EPOCH_MS, master.random()),
         );
         let l = &scenario.link;
         let radio = Radio::new(
@@ -244,25 +291,7 @@ impl World {
                     e.start.heading_deg.to_radians(),
                 );
                 body.wheel = [e.initial_speed; 2];
-                let identity = Identity {
-                    id: e.id,
-                    role: match e.role {
-                        Role::Leader => config::Role::Leader,
-                        Role::Follower => config::Role::Follower,
-                    },
-                    boot_count: 1,
-                };
-                let brain: Box<dyn Brain> = match options.firmware {
-                    Firmware::Native => Box::new(NativeBrain::new(identity, key.clone(), cfg)),
-                    Firmware::Qemu => Box::new(crate::qemu::QemuBrain::spawn(
-                        &elf,
-                        e.id,
-                        e.role == Role::Leader,
-                        1,
-                        sim_key_bytes(options.seed),
-                        options.step_timeout,
-                    )?),
-                };
+                let brain = boot_brain(&options, &elf, cfg, e.id, e.role, 1)?;
                 Ok(SimRobot {
                     id: e.id,
                     role: e.role,
@@ -361,7 +390,7 @@ impl World {
                         StationConfig::from_scenario(&self.scenario),
                         sim_key(self.options.seed),
                         rng.random(),
-                        rng.random(),
+                        nonce_base(SIM_EPOCH_MS + self.t_us / 1000, rng.random()),
                     );
                     // Its clock starts again at 0 too.
                     self.base_epoch_us = self.t_us;
@@ -394,30 +423,14 @@ impl World {
         // Fixes stamped before the boot: a booting robot is not listening.
         r.fixes.clear();
         tracing::info!(robot = id, boot = r.boot_count, "fault: reboot");
-        let leader = r.role == Role::Leader;
-        r.brain = match self.options.firmware {
-            Firmware::Native => Box::new(NativeBrain::new(
-                Identity {
-                    id,
-                    role: if leader {
-                        config::Role::Leader
-                    } else {
-                        config::Role::Follower
-                    },
-                    boot_count: r.boot_count,
-                },
-                sim_key(self.options.seed),
-                self.robot_cfg,
-            )),
-            Firmware::Qemu => Box::new(crate::qemu::QemuBrain::spawn(
-                &self.elf,
-                id,
-                leader,
-                r.boot_count,
-                sim_key_bytes(self.options.seed),
-                self.options.step_timeout,
-            )?),
-        };
+        r.brain = boot_brain(
+            &self.options,
+            &self.elf,
+            self.robot_cfg,
+            id,
+            r.role,
+            r.boot_count,
+        )?;
         r.duty = MotorOutput::default();
         r.inbox.clear();
         Ok(())

@@ -48,6 +48,8 @@ pub struct BodyConfig {
     pub id: u16,
     pub leader: bool,
     pub boot_count: u32,
+    /// What the board's noise source gives at this boot (the simulated board has none).
+    pub entropy: u32,
     pub key: [u8; 32],
 }
 

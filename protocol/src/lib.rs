@@ -68,11 +68,14 @@ pub enum Reject {
     Replay = 7,
     /// The tag verifies but the payload does not decode as the message it claims to be.
     Malformed = 8,
+    /// Authentic but too old by the sender's clock (a delaying relay, or a handshake whose
+    /// round trip is too long to trust the clock offset it gives).
+    Stale = 9,
 }
 
 impl Reject {
     /// Every reason, in wire order.
-    pub const ALL: [Reject; 9] = [
+    pub const ALL: [Reject; 10] = [
         Reject::BadCobs,
         Reject::TooLong,
         Reject::Truncated,
@@ -82,6 +85,7 @@ impl Reject {
         Reject::UnknownSession,
         Reject::Replay,
         Reject::Malformed,
+        Reject::Stale,
     ];
 
     /// A short snake_case name for logs and reports.
@@ -96,6 +100,7 @@ impl Reject {
             Reject::UnknownSession => "unknown_session",
             Reject::Replay => "replay",
             Reject::Malformed => "malformed",
+            Reject::Stale => "stale",
         }
     }
 }

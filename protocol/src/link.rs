@@ -8,6 +8,13 @@
 //! broadcasts, the peer's unicasts to us) must strictly increase: duplicates, replays and
 //! late (reordered) frames are refused. A control link wants the newest state only.
 //!
+//! A `Hello` is answered only when its nonce is newer than the last one seen from that
+//! peer (nonces grow: robots put their boot count in the high half, the base station its
+//! start time), so a recorded `Hello` replayed never gets an answer nor delays the genuine
+//! one. The handshake also measures the round trip and the peer's clock offset; a node
+//! that judges freshness by the sender's clock re-measures them every
+//! [`Timing::resync_every_ms`], and a round trip over [`Timing::max_rtt_ms`] is refused.
+//!
 //! - A robot that reboots knows no session: it accepts nothing until the base station
 //!   answers its fresh nonce, and the answer's sequence floor shuts out recorded frames.
 //! - A restarted base station has a new session: robots reject its frames (`bad_tag`),
@@ -34,9 +41,14 @@ use crate::{Reject, RejectCounts, PROTOCOL_VERSION};
 pub struct Timing {
     /// A peer silent (no accepted frame) this long is challenged again.
     pub relink_after_ms: u32,
-    /// At most one `Hello` per peer per this period; also the least time between two
-    /// answers to one peer's `Hello`s (so replayed challenges cannot make us flood).
+    /// At most one `Hello` per peer per this period.
     pub challenge_every_ms: u32,
+    /// Challenge a linked peer again this often, to re-measure its clock offset (crystals
+    /// drift ~0.2 s an hour); `None`: only when it falls silent.
+    pub resync_every_ms: Option<u32>,
+    /// A `Welcome` whose round trip took longer is refused: its clock offset could be off
+    /// by half of it (a relay that delays frames stretches the round trip).
+    pub max_rtt_ms: u32,
 }
 
 impl Default for Timing {
@@ -44,6 +56,8 @@ impl Default for Timing {
         Self {
             relink_after_ms: 1000,
             challenge_every_ms: 300,
+            resync_every_ms: None,
+            max_rtt_ms: 1000,
         }
     }
 }
@@ -79,11 +93,14 @@ pub struct Peer {
     /// earlier one after a newer one went out.
     challenges: Deque<(u64, u32), OUTSTANDING>,
     last_hello_ms: Option<u32>,
-    last_answer_ms: Option<u32>,
+    /// The newest `Hello` nonce seen from the peer: older or equal ones are replays.
+    newest_hello: Option<u64>,
     /// Our clock when the last frame from this peer was accepted.
     pub last_rx_ms: Option<u32>,
     /// Peer clock minus our clock, from the handshake's round trip.
     pub clock_offset_ms: Option<i32>,
+    /// The last handshake's round trip, ms: the offset is good to half of it.
+    pub rtt_ms: Option<u32>,
     pub accepted: u32,
     pub lost: u32,
     /// Rejected frames whose (unverified) header named this peer as sender.
@@ -100,9 +117,10 @@ impl Peer {
             rx_broadcast: Stream::default(),
             challenges: Deque::new(),
             last_hello_ms: None,
-            last_answer_ms: None,
+            newest_hello: None,
             last_rx_ms: None,
             clock_offset_ms: None,
+            rtt_ms: None,
             accepted: 0,
             lost: 0,
             rejects: RejectCounts::default(),
@@ -127,9 +145,13 @@ pub enum Event {
     Message { header: Header, message: Message },
     /// A peer asks for our session: answer with [`Link::answer`].
     Challenged { from: Address, nonce: u64 },
-    /// A peer answered our challenge: its frames are accepted from now on.
+    /// A peer answered our challenge with a new session: its frames are accepted from
+    /// now on.
     Linked { peer: Address },
-    /// A frame for another node, or a `Hello` answered too recently.
+    /// A linked peer answered a re-synchronising challenge (same session): its clock
+    /// offset and round trip are measured again.
+    Synced { peer: Address },
+    /// A frame for another node.
     Ignored,
 }
 
@@ -257,18 +279,21 @@ impl<const PEERS: usize> Link<PEERS> {
         self.send(to, now_ms, &Message::Hello(Hello { nonce }), out)
     }
 
-    /// The next peer that should be challenged now (unlinked, or silent too long, and
-    /// not challenged within [`Timing::challenge_every_ms`]), if any.
+    /// The next peer that should be challenged now (unlinked, silent too long, or due a
+    /// re-synchronisation, and not challenged within [`Timing::challenge_every_ms`]), if
+    /// any.
     pub fn due_challenge(&self, now_ms: u32) -> Option<Address> {
         let t = self.timing;
+        let since_hello = |p: &Peer| p.last_hello_ms.map(|h| now_ms.wrapping_sub(h));
         self.peers
             .iter()
             .find(|p| {
                 let stale = !p.is_linked() || p.silent_for(now_ms, t.relink_after_ms);
-                let quiet = p
-                    .last_hello_ms
-                    .is_none_or(|h| now_ms.wrapping_sub(h) >= t.challenge_every_ms);
-                stale && quiet
+                let resync = t
+                    .resync_every_ms
+                    .is_some_and(|r| since_hello(p).is_none_or(|s| s >= r));
+                let quiet = since_hello(p).is_none_or(|s| s >= t.challenge_every_ms);
+                (stale || resync) && quiet
             })
             .map(|p| p.address)
     }
@@ -321,14 +346,11 @@ impl<const PEERS: usize> Link<PEERS> {
         let peer = &mut self.peers[i];
         match message {
             Message::Hello(hello) => {
-                // Unbound to a session, so possibly replayed: answer, but not too often.
-                let recent = peer
-                    .last_answer_ms
-                    .is_some_and(|t| now_ms.wrapping_sub(t) < timing.challenge_every_ms);
-                if recent {
-                    return Ok(Event::Ignored);
+                // Unbound to a session: only a nonce newer than any seen is fresh.
+                if peer.newest_hello.is_some_and(|n| hello.nonce <= n) {
+                    return Err(Reject::Replay);
                 }
-                peer.last_answer_ms = Some(now_ms);
+                peer.newest_hello = Some(hello.nonce);
                 // A peer that lost our session may have restarted: make sure we have its
                 // current one too.
                 if peer.silent_for(now_ms, timing.challenge_every_ms) {
@@ -349,6 +371,10 @@ impl<const PEERS: usize> Link<PEERS> {
                 if header.to != self.me {
                     return Err(Reject::Replay);
                 }
+                let rtt = now_ms.wrapping_sub(sent_ms);
+                if rtt > timing.max_rtt_ms {
+                    return Err(Reject::Stale);
+                }
                 peer.challenges.clear();
                 // Within the same session a floor never goes back: a Welcome held back and
                 // delivered late must not reopen the frames accepted since it was sent.
@@ -362,10 +388,15 @@ impl<const PEERS: usize> Link<PEERS> {
                 peer.rx_broadcast.last = Some(floor(peer.rx_broadcast.last, welcome.broadcast_seq));
                 peer.last_rx_ms = Some(now_ms);
                 // NTP's estimate: the answer left halfway through the round trip.
-                let mid = sent_ms as i64 + (now_ms.wrapping_sub(sent_ms) / 2) as i64;
-                peer.clock_offset_ms = Some((header.time_ms as i64 - mid) as i32);
+                let mid = sent_ms.wrapping_add(rtt / 2);
+                peer.clock_offset_ms = Some(header.time_ms.wrapping_sub(mid) as i32);
+                peer.rtt_ms = Some(rtt);
                 peer.accepted = peer.accepted.saturating_add(1);
-                Ok(Event::Linked { peer: header.from })
+                Ok(if same {
+                    Event::Synced { peer: header.from }
+                } else {
+                    Event::Linked { peer: header.from }
+                })
             }
             _ => {
                 let stream = if header.to == Address::Broadcast {

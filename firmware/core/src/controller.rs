@@ -57,7 +57,8 @@ struct LeaderInput {
     snapshot: LeaderSnapshot,
     /// When the snapshot was valid, in this robot's clock.
     valid_at_ms: u32,
-    received_ms: u32,
+    /// When it was sent, at the latest, in this robot's clock: freshness counts from here.
+    sent_ms: u32,
     blend: f32,
     blend_rate: f32,
 }
@@ -162,13 +163,14 @@ impl Controller {
         Ok(())
     }
 
-    /// A fresh leader state, `valid_at_ms` in this robot's clock. Clears a `Stop`.
+    /// A fresh leader state, `valid_at_ms` and `sent_ms` (when the base station sent it,
+    /// at the latest) in this robot's clock. Clears a `Stop`.
     pub fn set_leader_state(
         &mut self,
         snapshot: LeaderSnapshot,
         valid_at_ms: u32,
         blend: f32,
-        now_ms: u32,
+        sent_ms: u32,
     ) -> Result<(), NonFinite> {
         if !snapshot.is_finite() || !blend.is_finite() {
             self.input_faults |= faults::NON_FINITE_INPUT;
@@ -186,7 +188,7 @@ impl Controller {
         self.leader = Some(LeaderInput {
             snapshot,
             valid_at_ms,
-            received_ms: now_ms,
+            sent_ms,
             blend,
             blend_rate,
         });
@@ -194,13 +196,14 @@ impl Controller {
         Ok(())
     }
 
-    /// A velocity command for the leader. Clears a `Stop`.
-    pub fn set_command(&mut self, twist: Twist, now_ms: u32) -> Result<(), NonFinite> {
+    /// A velocity command for the leader, sent (at the latest) at `sent_ms` in this
+    /// robot's clock. Clears a `Stop`.
+    pub fn set_command(&mut self, twist: Twist, sent_ms: u32) -> Result<(), NonFinite> {
         if !twist.is_finite() {
             self.input_faults |= faults::NON_FINITE_INPUT;
             return Err(NonFinite);
         }
-        self.command = Some((twist, now_ms));
+        self.command = Some((twist, sent_ms));
         self.stop_requested = false;
         Ok(())
     }
@@ -225,8 +228,9 @@ impl Controller {
         outcome
     }
 
-    fn is_fresh(&self, received_ms: u32, now_ms: u32, timeout_ms: u32) -> bool {
-        now_ms.wrapping_sub(received_ms) <= timeout_ms
+    /// Sent within `timeout_ms` of now (a stamp slightly ahead of our clock is fresh).
+    fn is_fresh(&self, sent_ms: u32, now_ms: u32, timeout_ms: u32) -> bool {
+        now_ms.wrapping_sub(sent_ms) as i32 <= timeout_ms as i32
     }
 
     /// One control period.
@@ -315,11 +319,7 @@ impl Controller {
                 };
                 let leader = match self.leader {
                     Some(l)
-                        if self.is_fresh(
-                            l.received_ms,
-                            now_ms,
-                            self.cfg.timeouts.leader_state_ms,
-                        ) =>
+                        if self.is_fresh(l.sent_ms, now_ms, self.cfg.timeouts.leader_state_ms) =>
                     {
                         l
                     }

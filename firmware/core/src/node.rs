@@ -4,7 +4,7 @@
 
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{faults, LinkCounters, Message, Telemetry, WirePose};
-use protocol::{units, Address, FleetKey, FrameDecoder, MAX_WIRE};
+use protocol::{units, Address, FleetKey, FrameDecoder, Reject, MAX_WIRE};
 
 use crate::config::{RobotConfig, Role};
 use crate::controller::{Controller, MotorOutput, Sensors};
@@ -19,9 +19,17 @@ use crate::{math, Pose, Twist};
 pub struct Identity {
     pub id: u16,
     pub role: Role,
-    /// Incremented at every boot and kept in flash: the link session and nonce base.
+    /// Incremented at every boot and kept in flash: the link session and the high half
+    /// of the nonces.
     pub boot_count: u32,
+    /// Fresh at every boot (noise) and unique to the board (its id): the low half of the
+    /// nonces, so a repeated boot count still never repeats a nonce a recorded `Welcome`
+    /// answered.
+    pub entropy: u32,
 }
+
+/// How often a robot re-measures the base station's clock offset.
+const RESYNC_EVERY_MS: u32 = 10_000;
 
 pub struct RobotNode {
     identity: Identity,
@@ -32,12 +40,18 @@ pub struct RobotNode {
 
 impl RobotNode {
     pub fn new(identity: Identity, key: FleetKey, config: RobotConfig) -> Self {
+        // Below 2³¹ in the low half: the counter never carries into the boot count.
+        let nonce_base = (identity.boot_count as u64) << 32 | (identity.entropy >> 1) as u64;
+        let timing = Timing {
+            resync_every_ms: Some(RESYNC_EVERY_MS),
+            ..Timing::default()
+        };
         let mut link = Link::new(
             Address::Robot(identity.id),
             key,
             identity.boot_count,
-            (identity.boot_count as u64) << 32,
-            Timing::default(),
+            nonce_base,
+            timing,
         );
         link.add_peer(Address::Base);
         Self {
@@ -67,6 +81,10 @@ impl RobotNode {
             match self.link.receive(frame, now_ms) {
                 Ok(Event::Message { header, message }) => {
                     let valid_at = self.local_time(header.time_ms);
+                    if self.is_stale(&message, valid_at, now_ms) {
+                        self.link.count_reject(Reject::Stale);
+                        continue;
+                    }
                     self.handle(message, valid_at, now_ms);
                 }
                 Ok(Event::Challenged { from, nonce }) => {
@@ -75,9 +93,34 @@ impl RobotNode {
                         tx(&buf[..n]);
                     }
                 }
-                Ok(Event::Linked { .. } | Event::Ignored) | Err(_) => {}
+                Ok(Event::Linked { .. } | Event::Synced { .. } | Event::Ignored) | Err(_) => {}
             }
         }
+    }
+
+    /// When a message was sent, by the base station's clock converted to ours, at the
+    /// latest the offset allows (it is good to half the handshake's round trip): a frame
+    /// is as fresh as its sender's stamp, not its arrival, so a relay that delays frames
+    /// makes them stale instead of invisible.
+    fn sent_at(&self, valid_at: u32) -> u32 {
+        let half_rtt = self
+            .link
+            .peer(Address::Base)
+            .and_then(|p| p.rtt_ms)
+            .unwrap_or(0)
+            / 2;
+        valid_at.wrapping_add(half_rtt)
+    }
+
+    /// A command already older than its timeout when it arrives.
+    fn is_stale(&self, message: &Message, valid_at: u32, now_ms: u32) -> bool {
+        let timeouts = &self.controller.config().timeouts;
+        let timeout = match message {
+            Message::LeaderState(_) => timeouts.leader_state_ms,
+            Message::VelocityCommand(_) => timeouts.command_ms,
+            _ => return false,
+        };
+        now_ms.wrapping_sub(self.sent_at(valid_at)) as i32 > timeout as i32
     }
 
     /// The base station's clock converted to ours (the handshake measured the offset).
@@ -91,6 +134,7 @@ impl RobotNode {
     }
 
     fn handle(&mut self, message: Message, valid_at: u32, now_ms: u32) {
+        let sent = self.sent_at(valid_at);
         let c = &mut self.controller;
         // Malformed values are refused by the controller and flagged in telemetry.
         let _ = match message {
@@ -101,14 +145,14 @@ impl RobotNode {
                     v: units::from_milli_i16(s.v_mm_s),
                     omega: units::from_milli_i16(s.omega_mrad_s),
                 };
-                c.set_leader_state(snapshot, valid_at, s.blend as f32 / 255.0, now_ms)
+                c.set_leader_state(snapshot, valid_at, s.blend as f32 / 255.0, sent)
             }
             Message::VelocityCommand(cmd) if self.identity.role == Role::Leader => {
                 let twist = Twist::new(
                     units::from_milli_i16(cmd.v_mm_s),
                     units::from_milli_i16(cmd.omega_mrad_s),
                 );
-                c.set_command(twist, now_ms)
+                c.set_command(twist, sent)
             }
             Message::FormationCommand(f) => c.set_slots(Slots {
                 wide: f.wide.to_si(),

@@ -18,6 +18,8 @@ pub struct Config {
     pub id: u16,
     pub leader: bool,
     pub boot_count: u32,
+    /// Noise read at this boot, mixed with the MCU's unique id (see `node::Identity`).
+    pub entropy: u32,
     pub key: [u8; 32],
 }
 
@@ -47,6 +49,7 @@ pub fn configure(c: Config) {
             Role::Follower
         },
         boot_count: c.boot_count,
+        entropy: c.entropy,
     };
     let node = RobotNode::new(identity, FleetKey::from_bytes(&c.key), RobotConfig::DEFAULT);
     let Some(node) = NODE_CELL.try_init(node) else {

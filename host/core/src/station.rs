@@ -168,8 +168,16 @@ impl StationConfig {
     }
 }
 
+/// The base station's first `Hello` nonce: its start time (ms since the Unix epoch, or
+/// the simulator's clock) above 19 random bits. Robots answer only a nonce newer than the
+/// last one they saw from the base station, so a restarted station must count on from
+/// where the last one stopped: time does that, the random bits keep it unguessable.
+pub fn nonce_base(start_ms: u64, random: u32) -> u64 {
+    start_ms << 20 | (random & 0x7_FFFF) as u64
+}
+
 impl BaseStation {
-    /// `session`: fresh at every start (random); `nonce_base`: random.
+    /// `session`: fresh at every start (random); `nonce_base`: see [`nonce_base`].
     pub fn new(cfg: StationConfig, key: FleetKey, session: u32, nonce_base: u64) -> Self {
         let mut link = Box::new(Link::new(
             Address::Base,
@@ -338,7 +346,7 @@ impl BaseStation {
                         self.last_slots_ms = None;
                     }
                 }
-                Ok(Event::Ignored) => {}
+                Ok(Event::Synced { .. } | Event::Ignored) => {}
                 Err(reason) => tracing::debug!(%reason, "frame rejected"),
             }
         }

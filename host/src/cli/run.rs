@@ -50,10 +50,17 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         (None, None) => unreachable!("clap requires --port or --udp"),
     };
-    let mut random = [0u8; 12];
+    let mut random = [0u8; 8];
     getrandom::fill(&mut random).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
     let session = u32::from_le_bytes(random[..4].try_into().expect("4 bytes"));
-    let nonce_base = u64::from_le_bytes(random[4..].try_into().expect("8 bytes"));
+    let start_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_err(|_| anyhow::anyhow!("the system clock is before 1970: set it before a run"))?
+        .as_millis() as u64;
+    let nonce_base = base_station::station::nonce_base(
+        start_ms,
+        u32::from_le_bytes(random[4..8].try_into().expect("4 bytes")),
+    );
     let mut station = BaseStation::new(
         StationConfig::from_scenario(&scenario),
         key,

@@ -11,7 +11,8 @@
 //! | right encoder A / B | PB6 [D10] / PB7 [CN7-21] | TIM4 encoder mode |
 //!
 //! Configuration page: flash sector 6 (0x0804_0000, written with `probe-rs download`);
-//! boot counter: flash sector 7 (0x0806_0000), one word appended per boot.
+//! boot counter: flash sector 7 (0x0806_0000), one word appended per boot (provisioned with
+//! its first word; an empty or unwritable log keeps the robot from linking).
 
 use core::cell::RefCell;
 
@@ -58,54 +59,83 @@ pub struct Board {
     pub config: Option<Config>,
 }
 
-/// Increments the boot counter: a log of words in sector 7, the newest one last.
-fn next_boot_count(flash: &mut Flash<'_, embassy_stm32::flash::Blocking>) -> u32 {
-    let mut word = [0u8; 4];
-    let mut last = 0u32;
-    let mut slot = 0u32;
-    while slot < BOOT_LOG_LEN {
-        if flash
-            .blocking_read(BOOT_LOG_OFFSET + slot, &mut word)
-            .is_err()
-        {
-            break;
-        }
-        let v = u32::from_le_bytes(word);
-        if v == u32::MAX {
-            break;
-        }
-        last = v;
-        slot += 4;
-    }
-    let next = last.wrapping_add(1);
+/// Increments the boot counter: a log of words in sector 7, the newest one last,
+/// provisioned with a first word (`robot-config`). Fails closed (`None`: the robot does
+/// not link) when the new count does not read back, and when the log is empty: never
+/// provisioned, or a wrap's erase was cut by a power loss; counting again from 1 would
+/// repeat sessions.
+fn next_boot_count(flash: &mut Flash<'_, embassy_stm32::flash::Blocking>) -> Option<u32> {
+    // Read through the memory map: written words first, then erased ones (append-only).
+    let base = (embassy_stm32::flash::FLASH_BASE as u32 + BOOT_LOG_OFFSET) as *const u32;
+    let words = (BOOT_LOG_LEN / 4) as usize;
+    // SAFETY: sector 7 is mapped flash, only ever written by this function.
+    let log = unsafe { core::slice::from_raw_parts(base, words) };
+    let used = log.partition_point(|w| *w != u32::MAX);
+    let mut slot = used as u32 * 4;
+    let last = used.checked_sub(1).map(|i| log[i]);
+    let Some(last) = last else {
+        defmt::error!("boot counter empty (not provisioned, or its erase was cut): not linking");
+        return None;
+    };
+    let next = last.checked_add(1).filter(|n| *n != u32::MAX)?;
     if slot >= BOOT_LOG_LEN {
-        let _ = flash.blocking_erase(BOOT_LOG_OFFSET, BOOT_LOG_OFFSET + BOOT_LOG_LEN);
+        // Power lost from here to the write leaves the log empty: fail closed next boot.
+        flash
+            .blocking_erase(BOOT_LOG_OFFSET, BOOT_LOG_OFFSET + BOOT_LOG_LEN)
+            .ok()?;
         slot = 0;
     }
-    if flash
-        .blocking_write(BOOT_LOG_OFFSET + slot, &next.to_le_bytes())
-        .is_err()
-    {
-        defmt::error!("boot counter not written: sessions may repeat");
+    let written = flash.blocking_write(BOOT_LOG_OFFSET + slot, &next.to_le_bytes());
+    // SAFETY: as above; read back after the write.
+    let stored = unsafe { core::ptr::read_volatile(base.add(slot as usize / 4)) };
+    if written.is_err() || stored != next {
+        defmt::error!("boot counter did not persist: not linking");
+        return None;
     }
-    next
+    Some(next)
+}
+
+/// Fresh at every power-up, unique to the chip: SRAM's power-up state (cell noise; kept
+/// across a warm reset, where it is stirred on) mixed with the 96-bit unique id. The F411
+/// has no RNG; the nonces need uniqueness, not secrecy.
+fn boot_entropy() -> u32 {
+    #[unsafe(link_section = ".uninit.entropy")]
+    static mut POOL: core::mem::MaybeUninit<[u32; 64]> = core::mem::MaybeUninit::uninit();
+    let mix = |x: u32, v: u32| (x ^ v).wrapping_mul(0x9E37_79B1).rotate_left(13);
+    let mut x = embassy_stm32::uid::uid().chunks_exact(4).fold(0, |x, w| {
+        mix(x, u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+    });
+    // SAFETY: read before anything else touches the pool (once, at boot); volatile: the
+    // compiler must not assume what an uninitialised section holds.
+    let pool = core::ptr::addr_of_mut!(POOL).cast::<u32>();
+    for i in 0..64 {
+        unsafe {
+            x = mix(x, core::ptr::read_volatile(pool.add(i)));
+            core::ptr::write_volatile(pool.add(i), x);
+        }
+    }
+    x
 }
 
 pub fn init() -> Board {
     let p = embassy_stm32::init(Default::default());
 
     let mut flash = Flash::new_blocking(p.FLASH);
-    let mut page = [0u8; CONFIG_PAGE_LEN];
-    let config = flash
-        .blocking_read(CONFIG_OFFSET, &mut page)
-        .ok()
-        .and_then(|_| ConfigPage::decode(&page))
-        .map(|c| Config {
+    let entropy = boot_entropy();
+    // SAFETY: sector 6 is mapped flash, written only at provisioning.
+    let page = unsafe {
+        &*((embassy_stm32::flash::FLASH_BASE as u32 + CONFIG_OFFSET)
+            as *const [u8; CONFIG_PAGE_LEN])
+    };
+    let config = ConfigPage::decode(page).and_then(|c| {
+        Some(Config {
             id: c.id,
             leader: c.leader,
-            boot_count: next_boot_count(&mut flash),
+            boot_count: next_boot_count(&mut flash)?,
+            entropy,
             key: c.key,
-        });
+        })
+    });
     if config.is_none() {
         defmt::error!("no valid configuration page at 0x0804_0000: the robot will not drive");
     }

@@ -116,6 +116,7 @@ pub async fn body_task(spawner: Spawner) {
         id: config.id,
         leader: config.leader,
         boot_count: config.boot_count,
+        entropy: config.entropy,
         key: config.key,
     });
     crate::tasks::start(spawner, radio::Rx, radio::Tx, Body);
