@@ -1,6 +1,7 @@
 //! The operator's program as a user runs it: bad scenario files, decode on garbage.
 
 use std::io::Write;
+use std::os::unix::fs::PermissionsExt;
 use std::process::{Command, Stdio};
 
 fn basestation(args: &[&str], stdin: Option<&[u8]>) -> (i32, String, String) {
@@ -180,6 +181,17 @@ fn decode_reads_genuine_frames_and_verifies_with_the_key() {
     std::fs::create_dir_all(&dir).unwrap();
     let key_file = dir.join("fleet.key");
     std::fs::write(&key_file, &hex).unwrap();
+    // As ssh does: a key others can read is refused, saying how to fix it.
+    let (code, _, err) = basestation(
+        &["decode", "--key-file", key_file.to_str().unwrap()],
+        Some(&capture),
+    );
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("can be read by others") && err.contains("chmod 600"),
+        "{err}"
+    );
+    std::fs::set_permissions(&key_file, std::fs::Permissions::from_mode(0o600)).unwrap();
     let (code, out, _) = basestation(
         &["decode", "--key-file", key_file.to_str().unwrap()],
         Some(&capture),
@@ -273,6 +285,45 @@ fn robot_config_writes_a_page_the_firmware_accepts() {
     let bytes = std::fs::read(&page).unwrap();
     let c = protocol::config_page::ConfigPage::decode(&bytes).expect("valid page");
     assert_eq!((c.id, c.leader, c.key), (3, true, [0xab; 32]));
+    let mode = std::fs::metadata(&page).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o600, "the page holds the key");
+
+    // Provisioning a replacement board: its boot counter continues above the old one's.
+    let log = dir.join("robot.boot");
+    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .args(["robot-config", "--id", "3", "--role", "leader", "-o"])
+        .arg(&page)
+        .arg("--boot-log")
+        .arg(&log)
+        .args(["--last-boot-count", "41"])
+        .env("SWEEPER_FLEET_KEY", "ab".repeat(32))
+        .env_remove("SWEEPER_KEY_FILE")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert_eq!(std::fs::read(&log).unwrap(), 41u32.to_le_bytes());
+
+    // An oversized "key file" is refused before it is read.
+    let big = dir.join("big.key");
+    std::fs::write(&big, vec![b'a'; 4096]).unwrap();
+    std::fs::set_permissions(&big, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let (code, _, err) = basestation(
+        &[
+            "robot-config",
+            "--id",
+            "3",
+            "--role",
+            "leader",
+            "-o",
+            "/dev/null",
+            "--key-file",
+            big.to_str().unwrap(),
+        ],
+        None,
+    );
+    assert_eq!(code, 1);
+    assert!(err.contains("is not a key file"), "{err}");
+
     let (code, _, err) = basestation(
         &[
             "robot-config",

@@ -6,12 +6,14 @@
 
 use blake2::digest::{consts::U8, KeyInit, Mac};
 use blake2::Blake2sMac;
+use zeroize::Zeroize;
 
 use crate::TAG_LEN;
 
 type Mac64 = Blake2sMac<U8>;
 
-/// The fleet's pre-shared 256-bit key. It never travels over the air and is never printed.
+/// The fleet's pre-shared 256-bit key. It never travels over the air and is never printed;
+/// its state is zeroed when dropped (blake2's `zeroize`).
 #[derive(Clone)]
 pub struct FleetKey {
     /// The MAC with the key block already absorbed; cloned for every frame.
@@ -40,17 +42,10 @@ impl FleetKey {
 
     /// Parses 64 hexadecimal digits (surrounding whitespace allowed).
     pub fn from_hex(text: &str) -> Result<Self, BadKey> {
-        let text = text.trim().as_bytes();
-        if text.len() != 64 {
-            return Err(BadKey);
-        }
-        let mut bytes = [0u8; 32];
-        for (i, pair) in text.chunks_exact(2).enumerate() {
-            let hi = hex_digit(pair[0]).ok_or(BadKey)?;
-            let lo = hex_digit(pair[1]).ok_or(BadKey)?;
-            bytes[i] = hi << 4 | lo;
-        }
-        Ok(Self::from_bytes(&bytes))
+        let mut bytes = key_bytes_from_hex(text)?;
+        let key = Self::from_bytes(&bytes);
+        bytes.zeroize();
+        Ok(key)
     }
 
     fn mac(&self, schema_key: &[u8; 8], session: u32, body: &[u8]) -> Mac64 {
@@ -80,6 +75,26 @@ impl core::fmt::Debug for FleetKey {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str("FleetKey(<secret>)")
     }
+}
+
+/// The 32 bytes of a key written as 64 hexadecimal digits (surrounding whitespace
+/// allowed). Zero them when done.
+pub fn key_bytes_from_hex(text: &str) -> Result<[u8; 32], BadKey> {
+    let text = text.trim().as_bytes();
+    if text.len() != 64 {
+        return Err(BadKey);
+    }
+    let mut bytes = [0u8; 32];
+    for (i, pair) in text.chunks_exact(2).enumerate() {
+        match (hex_digit(pair[0]), hex_digit(pair[1])) {
+            (Some(hi), Some(lo)) => bytes[i] = hi << 4 | lo,
+            _ => {
+                bytes.zeroize();
+                return Err(BadKey);
+            }
+        }
+    }
+    Ok(bytes)
 }
 
 fn hex_digit(c: u8) -> Option<u8> {

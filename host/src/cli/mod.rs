@@ -6,12 +6,13 @@ pub mod robot_config;
 pub mod run;
 pub mod sim;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use base_station::scenario::Scenario;
 use clap::Args;
 use protocol::FleetKey;
+use zeroize::Zeroizing;
 
 /// The scenarios shipped with the program, by name.
 pub const SHIPPED: &[(&str, &str)] = &[
@@ -65,16 +66,53 @@ pub struct KeyArgs {
 impl KeyArgs {
     /// The key from `--key-file`, `SWEEPER_KEY_FILE`, or `SWEEPER_FLEET_KEY` (hex), if any.
     pub fn load(&self) -> anyhow::Result<Option<FleetKey>> {
-        if let Some(path) = &self.key_file {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read the key file {}", path.display()))?;
-            let key = FleetKey::from_hex(&text)
-                .with_context(|| format!("key file {}", path.display()))?;
-            return Ok(Some(key));
-        }
-        if let Ok(hex) = std::env::var("SWEEPER_FLEET_KEY") {
-            return Ok(Some(FleetKey::from_hex(&hex).context("SWEEPER_FLEET_KEY")?));
-        }
-        Ok(None)
+        let Some(hex) = self.load_hex()? else {
+            return Ok(None);
+        };
+        Ok(Some(FleetKey::from_hex(&hex).context(self.source())?))
     }
+
+    /// The key's text, zeroed when dropped.
+    pub fn load_hex(&self) -> anyhow::Result<Option<Zeroizing<String>>> {
+        if let Some(path) = &self.key_file {
+            return read_key_file(path).map(Some);
+        }
+        Ok(std::env::var("SWEEPER_FLEET_KEY").ok().map(Zeroizing::new))
+    }
+
+    fn source(&self) -> String {
+        match &self.key_file {
+            Some(path) => format!("key file {}", path.display()),
+            None => "SWEEPER_FLEET_KEY".into(),
+        }
+    }
+}
+
+/// Largest key file read: a key is 64 hex digits and a newline.
+const MAX_KEY_FILE: u64 = 1024;
+
+/// Reads a key file as ssh reads a private key: only if nobody but its owner can read it,
+/// and only if it is small enough to be one.
+fn read_key_file(path: &Path) -> anyhow::Result<Zeroizing<String>> {
+    use std::os::unix::fs::PermissionsExt;
+    let meta = std::fs::metadata(path)
+        .with_context(|| format!("cannot read the key file {}", path.display()))?;
+    if !meta.is_file() || meta.len() > MAX_KEY_FILE {
+        bail!(
+            "{} is not a key file ({} bytes; a key is 64 hex digits)",
+            path.display(),
+            meta.len()
+        );
+    }
+    let mode = meta.permissions().mode() & 0o777;
+    if mode & 0o077 != 0 {
+        bail!(
+            "the key file {} can be read by others (mode {mode:03o}): run  chmod 600 {}",
+            path.display(),
+            path.display()
+        );
+    }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the key file {}", path.display()))?;
+    Ok(Zeroizing::new(text))
 }

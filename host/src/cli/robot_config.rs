@@ -1,13 +1,18 @@
-//! `basestation robot-config --id N --role leader|follower -o FILE`: the 48-byte
-//! configuration page a robot reads at boot (its id, its role, the fleet key). Flash it to
-//! the NUCLEO-F411RE's sector 6 with
-//! `probe-rs download --chip STM32F411RETx --binary-format bin --base-address 0x08040000 FILE`.
+//! `basestation robot-config --id N --role leader|follower -o FILE [--boot-log FILE]`: the
+//! 48-byte configuration page a robot reads at boot (its id, its role, the fleet key), and
+//! the first word of its boot counter. Flash them to the NUCLEO-F411RE's sectors 6 and 7:
+//! `probe-rs download --chip STM32F411RETx --binary-format bin --base-address 0x08040000 FILE`
+//! (and `0x08060000` for the boot log). Both files are written readable by their owner only:
+//! the page holds the key.
 
-use std::path::PathBuf;
+use std::io::Write;
+use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use protocol::config_page::ConfigPage;
+use zeroize::Zeroizing;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum RoleArg {
@@ -25,6 +30,14 @@ pub struct RobotConfigArgs {
     /// Where to write the page.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Also write the boot counter's first word here (flash it at 0x08060000 once, when
+    /// provisioning: the firmware refuses to link with an empty counter).
+    #[arg(long)]
+    pub boot_log: Option<PathBuf>,
+    /// The last boot count this id used: a replacement board continues above it, so its
+    /// sessions never repeat the old board's.
+    #[arg(long, default_value_t = 0, requires = "boot_log")]
+    pub last_boot_count: u32,
     #[command(flatten)]
     pub key: super::KeyArgs,
 }
@@ -33,31 +46,47 @@ pub fn run(args: RobotConfigArgs) -> anyhow::Result<()> {
     if args.id == u16::MAX {
         bail!("id 65535 is reserved");
     }
-    let hex = match (&args.key.key_file, std::env::var("SWEEPER_FLEET_KEY")) {
-        (Some(path), _) => std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read the key file {}", path.display()))?,
-        (None, Ok(hex)) => hex,
-        (None, Err(_)) => bail!("no fleet key: pass --key-file FILE or set SWEEPER_FLEET_KEY"),
+    let Some(hex) = args.key.load_hex()? else {
+        bail!("no fleet key: pass --key-file FILE or set SWEEPER_FLEET_KEY");
     };
-    // Parse twice: FleetKey checks the text, then the bytes go into the page.
-    protocol::FleetKey::from_hex(&hex).context("the fleet key")?;
-    let bytes = hex::decode(hex.trim()).context("the fleet key")?;
-    let key: [u8; 32] = bytes
-        .try_into()
-        .map_err(|_| anyhow::anyhow!("the fleet key is not 32 bytes"))?;
+    let key = Zeroizing::new(protocol::auth::key_bytes_from_hex(&hex).context("the fleet key")?);
     let page = ConfigPage {
         id: args.id,
         leader: matches!(args.role, RoleArg::Leader),
-        key,
+        key: *key,
     };
-    std::fs::write(&args.output, page.encode())
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let encoded = Zeroizing::new(page.encode());
+    write_private(&args.output, &encoded[..])?;
+    if let Some(path) = &args.boot_log {
+        write_private(path, &args.last_boot_count.to_le_bytes())?;
+        println!(
+            "wrote {}: the boot counter starts above {}",
+            path.display(),
+            args.last_boot_count
+        );
+    }
     println!(
         "wrote {} ({} bytes) for robot {} ({:?})",
         args.output.display(),
-        page.encode().len(),
+        encoded.len(),
         args.id,
         args.role
     );
     Ok(())
+}
+
+/// Writes `bytes` to `path`, readable and writable by the owner only (also when it
+/// already existed).
+fn write_private(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .mode(0o600)
+        .open(path)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    file.set_permissions(std::fs::Permissions::from_mode(0o600))
+        .with_context(|| format!("cannot restrict {}", path.display()))?;
+    file.write_all(bytes)
+        .with_context(|| format!("cannot write {}", path.display()))
 }
