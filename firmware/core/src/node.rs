@@ -46,10 +46,12 @@ impl RobotNode {
             resync_every_ms: Some(RESYNC_EVERY_MS),
             ..Timing::default()
         };
+        // Differs at every boot (the count), and with a repeated count still (the noise).
+        let session = identity.entropy ^ identity.boot_count.wrapping_mul(0x9E37_79B9);
         let mut link = Link::new(
             Address::Robot(identity.id),
             key,
-            identity.boot_count,
+            session,
             nonce_base,
             timing,
         );

@@ -21,6 +21,7 @@ fn follower_links_follows_and_reports() {
         id: 1,
         role: Role::Follower,
         boot_count: 3,
+        entropy: 0x1234_5678,
     };
     let mut node = RobotNode::new(id, key(), RobotConfig::DEFAULT);
     let mut base_dec = FrameDecoder::new();
