@@ -7,13 +7,40 @@ use std::collections::VecDeque;
 use base_station::scenario::{FaultKind, FaultSpec};
 use control_core::controller::{MotorOutput, Sensors};
 use protocol::link::{Link, Timing};
-use protocol::messages::{LeaderState, Message, RobotMode, WirePose};
-use protocol::{Address, FleetKey, RejectCounts, MAX_WIRE};
+use protocol::messages::{Hello, LeaderState, Message, RobotMode, Welcome, WirePose};
+use protocol::{Address, FleetKey, FrameDecoder, RejectCounts, MAX_WIRE};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::brain::{Brain, BrainError};
 use crate::radio::RadioParams;
+
+/// Message ids of the handshake (the attackers pick these frames by header alone).
+fn is_hello(id: u8) -> bool {
+    id == Message::Hello(Hello { nonce: 0 }).id()
+}
+
+fn is_welcome(id: u8) -> bool {
+    id == Message::Welcome(Welcome {
+        nonce: 0,
+        session: 0,
+        broadcast_seq: 0,
+    })
+    .id()
+}
+
+/// The header of one wire frame (COBS, with its delimiter), if it parses.
+fn decoded_header(wire: &[u8]) -> Option<protocol::Header> {
+    let mut decoder = FrameDecoder::new();
+    for b in wire {
+        if let Some(raw) = decoder.push(*b) {
+            return raw
+                .ok()
+                .and_then(|raw| protocol::frame::peek_header(raw).ok());
+        }
+    }
+    None
+}
 
 /// A controller that died: no frames, motors off.
 pub struct DeadBrain;
@@ -47,8 +74,14 @@ pub struct Injector {
     rng: ChaCha8Rng,
     rogue: Link<1>,
     recorded: VecDeque<(u64, Vec<u8>)>,
+    /// The newest `Hello` heard from each robot, for the hello replayer.
+    hellos: Vec<(Address, Vec<u8>)>,
+    next_hello: usize,
+    /// `Welcome` frames jammed at the robot, to deliver later.
+    held: VecDeque<(u64, Vec<u8>)>,
     owed_garbage: f64,
     owed_forgeries: f64,
+    owed_hellos: f64,
 }
 
 impl Injector {
@@ -70,8 +103,12 @@ impl Injector {
             rng,
             rogue,
             recorded: VecDeque::new(),
+            hellos: Vec::new(),
+            next_hello: 0,
+            held: VecDeque::new(),
             owed_garbage: 0.0,
             owed_forgeries: 0.0,
+            owed_hellos: 0.0,
         }
     }
 
@@ -96,6 +133,9 @@ impl Injector {
         }
         if let Some(f) = self.active(FaultKind::Corruption, t_s) {
             p.byte_corruption = f.value.unwrap_or(0.0);
+        }
+        if let Some(f) = self.active(FaultKind::DelayRelay, t_s) {
+            p.latency_s += f.value.unwrap_or(0.0);
         }
         p
     }
@@ -164,17 +204,42 @@ impl Injector {
         out
     }
 
-    /// Records what the base station sent, for the replay attacker.
-    pub fn overheard(&mut self, t_us: u64, bytes: &[u8]) {
-        if self
-            .faults
-            .iter()
-            .any(|f| f.kind == FaultKind::ReplayAttacker)
-        {
-            for frame in bytes.split_inclusive(|b| *b == 0) {
+    /// Records what a node sent (`from` 0: the base station), for the replayers; returns
+    /// what reaches the air (a `Welcome` being held back does not).
+    pub fn overheard(&mut self, from: usize, t_us: u64, bytes: &[u8]) -> Vec<u8> {
+        let t_s = t_us as f64 / 1e6;
+        let replaying = from == 0
+            && self
+                .faults
+                .iter()
+                .any(|f| f.kind == FaultKind::ReplayAttacker);
+        let collecting_hellos =
+            from != 0 && self.faults.iter().any(|f| f.kind == FaultKind::HelloReplay);
+        let holding = from == 0 && self.active(FaultKind::WelcomeHoldback, t_s).is_some();
+        let mut on_air = Vec::with_capacity(bytes.len());
+        for frame in bytes.split_inclusive(|b| *b == 0) {
+            if replaying {
                 self.recorded.push_back((t_us, frame.to_vec()));
             }
+            let message = (collecting_hellos || holding)
+                .then(|| decoded_header(frame))
+                .flatten();
+            match message {
+                Some(h) if collecting_hellos && is_hello(h.id) => {
+                    match self.hellos.iter_mut().find(|(a, _)| *a == h.from) {
+                        Some(slot) => slot.1 = frame.to_vec(),
+                        None => self.hellos.push((h.from, frame.to_vec())),
+                    }
+                }
+                Some(h) if holding && is_welcome(h.id) => {
+                    self.held.push_back((t_us, frame.to_vec()));
+                    continue;
+                }
+                _ => {}
+            }
+            on_air.extend_from_slice(frame);
         }
+        on_air
     }
 
     /// The attacker's transmissions during one step of `step_s` ending at `t_us`.
@@ -212,6 +277,30 @@ impl Injector {
                 {
                     out.extend_from_slice(&buf[..n]);
                 }
+            }
+        }
+        if let Some(f) = self.active(FaultKind::HelloReplay, t_s) {
+            self.owed_hellos += f.value.unwrap_or(0.0) * step_s;
+            while self.owed_hellos >= 1.0 && !self.hellos.is_empty() {
+                self.owed_hellos -= 1.0;
+                self.next_hello = (self.next_hello + 1) % self.hellos.len();
+                out.extend_from_slice(&self.hellos[self.next_hello].1);
+            }
+        }
+        if let Some(f) = self
+            .faults
+            .iter()
+            .find(|f| f.kind == FaultKind::WelcomeHoldback)
+        {
+            // Held frames go out `value` s late, also after the attack window closed.
+            let delay_us = (f.value.unwrap_or(0.0) * 1e6) as u64;
+            while self
+                .held
+                .front()
+                .is_some_and(|(at, _)| at + delay_us <= t_us)
+            {
+                let (_, frame) = self.held.pop_front().expect("peeked");
+                out.extend_from_slice(&frame);
             }
         }
         if let Some(f) = self.active(FaultKind::ReplayAttacker, t_s) {

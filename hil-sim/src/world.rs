@@ -354,9 +354,8 @@ impl World {
             return;
         }
         let t_s = self.t_us as f64 / 1e6;
-        if from == 0 {
-            self.injector.overheard(self.t_us, bytes);
-        }
+        let on_air = self.injector.overheard(from, self.t_us, bytes);
+        let bytes = &on_air[..];
         let silenced = self.injector.silenced(from, t_s);
         let params = *self.radio.params();
         if silenced {

@@ -356,3 +356,95 @@ fn frames_a_minute_old_are_refused_too() {
     println!("replays of 60 s old frames rejected: {replays}");
     assert!(replays > 100);
 }
+
+/// Issue 15, item 4: a relay that delays every frame by 2 s (both ways). The frames are
+/// authentic and keep coming, but by the sender's clock they are 2 s old: refused as
+/// stale, so the fleet stops within the bound, as for silence; it resumes after.
+#[test]
+fn a_relay_that_delays_every_frame_by_2_s_stops_the_fleet_within_the_bound() {
+    let bound = RobotConfig::DEFAULT.stop_distance_bound() as f64;
+    let s = with(
+        shipped("paper-passage"),
+        &[(30.0, FaultKind::DelayRelay, Some(10.0), None, Some(2.0))],
+    );
+    let (r, world) = run(s, 1);
+    assert_safe(&r);
+    assert!(r.goal_reached, "resumed after the relay");
+    let travel = travel_while_cut_off(&world, 30.0, 40.0);
+    let stale = r.link.rejects_by_reason.get("stale").copied().unwrap_or(0);
+    println!("2 s relay for 10 s: at most {travel:.2} m driven (bound {bound:.2} m), {stale} frames refused as stale");
+    assert!(travel <= bound, "{travel}");
+    assert!(
+        stale > 100,
+        "the delayed frames were refused as stale: {stale}"
+    );
+}
+
+/// Issue 15, item 3: robots' `Hello` frames recorded and replayed at 50 frames/s for
+/// 30 s, while a follower reboots and must link again: it links at once, as without the
+/// attack, and no replayed `Hello` is answered.
+#[test]
+fn replayed_hellos_never_keep_a_rebooted_robot_from_linking() {
+    let s = with(
+        shipped("paper-passage"),
+        &[
+            (10.0, FaultKind::HelloReplay, Some(30.0), None, Some(50.0)),
+            (20.0, FaultKind::Reboot, None, Some(2), None),
+        ],
+    );
+    let (r, _) = run(s, 1);
+    assert_safe(&r);
+    assert!(r.goal_reached);
+    let relinked = r
+        .station_events
+        .iter()
+        .filter(|e| e.event == "linked" && e.robot == Some(2))
+        .map(|e| e.at_s)
+        .collect::<Vec<_>>();
+    println!(
+        "robot 2 linked at {relinked:?}; rejects {:?}",
+        r.link.rejects_by_reason
+    );
+    assert_eq!(relinked.len(), 2, "{relinked:?}");
+    assert!(
+        relinked[1] - 20.0 < 1.5,
+        "relinked {:.2} s after its reboot",
+        relinked[1] - 20.0
+    );
+    let replays = r.link.rejects_by_reason.get("replay").copied().unwrap_or(0);
+    assert!(
+        replays > 1000,
+        "the replayed Hellos were refused: {replays}"
+    );
+}
+
+/// Issue 15, item 2: every `Welcome` jammed at the robot and delivered 2 s late, while a
+/// follower reboots: the late Welcomes are refused (their challenges expired or were
+/// superseded) and the fleet stays safe and finishes. That a late Welcome never lowers a
+/// replay floor is proven frame by frame in `protocol/tests/link.rs`.
+#[test]
+fn held_back_welcomes_leave_the_fleet_safe() {
+    let s = with(
+        shipped("paper-passage"),
+        &[
+            (
+                10.0,
+                FaultKind::WelcomeHoldback,
+                Some(20.0),
+                None,
+                Some(2.0),
+            ),
+            (15.0, FaultKind::Reboot, None, Some(1), None),
+        ],
+    );
+    let (r, _) = run(s, 1);
+    assert_safe(&r);
+    println!(
+        "goal {} at {:?}; rejects {:?}",
+        r.goal_reached, r.time_to_goal_s, r.link.rejects_by_reason
+    );
+    assert!(
+        r.goal_reached,
+        "the fleet links again once the attack stops"
+    );
+}

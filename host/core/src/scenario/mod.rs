@@ -147,6 +147,15 @@ pub enum FaultKind {
     Duplicate,
     /// Each byte on the air is flipped with probability `value`.
     Corruption,
+    /// A relay between the base station and the robots delays every frame, both ways, by
+    /// `value` seconds (authentic frames, arriving late).
+    DelayRelay,
+    /// Robots' `Hello` frames recorded off the air are replayed to the base station at
+    /// `value` frames/s (an attempt to keep a robot from linking).
+    HelloReplay,
+    /// The base station's `Welcome` frames are jammed at the robot and delivered `value`
+    /// seconds later (an attempt to roll a replay floor back).
+    WelcomeHoldback,
 }
 
 /// One scheduled fault. Fields beyond `at_s` and `kind` depend on the kind.

@@ -305,6 +305,9 @@ impl Scenario {
                     | FaultKind::PoseJump
                     | FaultKind::Reorder
                     | FaultKind::Corruption
+                    | FaultKind::DelayRelay
+                    | FaultKind::HelloReplay
+                    | FaultKind::WelcomeHoldback
             );
             match (needs_value, f.value) {
                 (true, None) => p.fail(&format!("faults[{i}]"), "this fault needs `value`"),
