@@ -100,3 +100,59 @@ fn follower_links_follows_and_reports() {
     assert_eq!(last.link.rejected, 2);
     assert_eq!(rejects.get(protocol::Reject::UnknownSession), 2);
 }
+
+/// Issue 15, item 1: a robot whose boot count repeats (power lost during the counter's
+/// wrap, a replacement board) still draws fresh nonces: a `Welcome` recorded in the
+/// earlier boot answers none of them, so the recorded session is never reopened and its
+/// frames never accepted.
+#[test]
+fn a_repeated_boot_count_does_not_reopen_a_recorded_session() {
+    let boot = |entropy| Identity {
+        id: 1,
+        role: Role::Follower,
+        boot_count: 7,
+        entropy,
+    };
+    let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
+    base.add_peer(Address::Robot(1));
+    let sensors = Sensors::default();
+
+    // The earlier boot: it challenges, the base answers; the attacker records the answer
+    // and the leader states that follow.
+    let mut first = RobotNode::new(boot(0xAAAA_0001), key(), RobotConfig::DEFAULT);
+    let mut hello = Vec::new();
+    first.tick(0, &sensors, &mut |b| hello.extend_from_slice(b));
+    let mut recorded = Vec::new();
+    let mut dec = FrameDecoder::new();
+    let mut buf = [0u8; MAX_WIRE];
+    for b in hello {
+        if let Some(frame) = dec.push(b) {
+            if let Ok(Event::Challenged { from, nonce }) = base.receive(frame, 10) {
+                let n = base.answer(from, nonce, 10, &mut buf).unwrap();
+                recorded.extend_from_slice(&buf[..n]);
+            }
+        }
+    }
+    assert!(!recorded.is_empty(), "the base answered the first boot");
+    first.receive(&recorded, 20, &mut |_| {});
+    assert!(first.link().peer(Address::Base).unwrap().is_linked());
+    let state = Message::LeaderState(LeaderState {
+        pose: WirePose::from_si(5.0, 0.0, 0.0).unwrap(),
+        v_mm_s: 0,
+        omega_mrad_s: 0,
+        blend: 0,
+    });
+    for t in [100, 200, 300] {
+        let n = base.send(Address::Broadcast, t, &state, &mut buf).unwrap();
+        recorded.extend_from_slice(&buf[..n]);
+    }
+
+    // The same count again, other noise: its own challenge first, then the recording.
+    let mut again = RobotNode::new(boot(0x5555_0002), key(), RobotConfig::DEFAULT);
+    again.tick(0, &sensors, &mut |_| {});
+    again.receive(&recorded, 50, &mut |_| {});
+    assert!(!again.link().peer(Address::Base).unwrap().is_linked());
+    let rejects = again.link().stats().rejects;
+    assert_eq!(rejects.get(protocol::Reject::Replay), 1, "the recorded Welcome");
+    assert_eq!(rejects.get(protocol::Reject::UnknownSession), 3, "its leader states");
+}
