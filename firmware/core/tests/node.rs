@@ -153,6 +153,14 @@ fn a_repeated_boot_count_does_not_reopen_a_recorded_session() {
     again.receive(&recorded, 50, &mut |_| {});
     assert!(!again.link().peer(Address::Base).unwrap().is_linked());
     let rejects = again.link().stats().rejects;
-    assert_eq!(rejects.get(protocol::Reject::Replay), 1, "the recorded Welcome");
-    assert_eq!(rejects.get(protocol::Reject::UnknownSession), 3, "its leader states");
+    assert_eq!(
+        rejects.get(protocol::Reject::Replay),
+        1,
+        "the recorded Welcome"
+    );
+    assert_eq!(
+        rejects.get(protocol::Reject::UnknownSession),
+        3,
+        "its leader states"
+    );
 }

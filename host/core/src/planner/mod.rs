@@ -551,6 +551,16 @@ impl Planner {
                     points.extend(leg.points.into_iter().skip(1));
                     arcs.push(length);
                 }
+                Err(_) if !routing.blocked.is_empty() => {
+                    // The stuck marks are guesses (the map and what the scanner saw are
+                    // the truth): when they leave no way, forget them and plan again.
+                    tracing::info!(
+                        marks = routing.blocked.len(),
+                        "stuck marks leave no way: cleared"
+                    );
+                    routing.blocked.clear();
+                    return self.plan_route(from, now_s, map);
+                }
                 Err(e) => {
                     routing.failure = Some(e);
                     routing.route = None;
