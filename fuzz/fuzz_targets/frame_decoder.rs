@@ -14,14 +14,14 @@ fuzz_target!(|data: &[u8]| {
         0,
         Timing::default(),
     );
-    link.add_peer(Address::Base);
+    link.add_peer(Address::Base, FleetKey::from_bytes(&[4; 32]));
     let mut dec = FrameDecoder::new();
     for (i, &b) in data.iter().enumerate() {
         if let Some(frame) = dec.push(b) {
             let r = link.receive(frame, i as u32);
             assert!(!matches!(
                 r,
-                Ok(Event::Message { .. }) | Ok(Event::Linked { .. })
+                Ok(Event::Message { .. }) | Ok(Event::Linked { .. }) | Ok(Event::Synced { .. })
             ));
         }
     }

@@ -11,7 +11,7 @@ use control_core::config::RobotConfig;
 use control_core::controller::{MotorOutput, Sensors};
 use control_core::node::{Identity, RobotNode};
 use protocol::messages::RobotMode;
-use protocol::{FleetKey, RejectCounts};
+use protocol::{MasterKey, RejectCounts};
 
 /// A brain that stopped working (a crashed or hung firmware).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -62,9 +62,15 @@ pub struct NativeBrain {
 }
 
 impl NativeBrain {
-    pub fn new(identity: Identity, key: FleetKey, config: RobotConfig) -> Self {
+    /// Robot `identity.id` with the keys its configuration page would hold.
+    pub fn new(identity: Identity, master: &MasterKey, config: RobotConfig) -> Self {
         Self {
-            node: RobotNode::new(identity, key, config),
+            node: RobotNode::new(
+                identity,
+                master.broadcast(),
+                master.robot(identity.id),
+                config,
+            ),
             tx: Vec::new(),
             out: None,
         }

@@ -18,7 +18,7 @@ use control_core::Pose;
 use glam::DVec2;
 use protocol::body::BodyConfig;
 use protocol::frame::{self, Address};
-use protocol::FleetKey;
+use protocol::MasterKey;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -119,8 +119,9 @@ pub fn sim_key_bytes(seed: u64) -> [u8; 32] {
 /// The simulated world's wall clock at t = 0, ms since the Unix epoch (2026-01-01).
 const SIM_EPOCH_MS: u64 = 1_767_225_600_000;
 
-pub fn sim_key(seed: u64) -> FleetKey {
-    FleetKey::from_bytes(&sim_key_bytes(seed))
+/// The simulated fleet's master key, from the seed.
+pub fn sim_key(seed: u64) -> MasterKey {
+    MasterKey::from_bytes(&sim_key_bytes(seed))
 }
 
 /// What a robot's noise source gives at one boot: from the seed, the id and the boot.
@@ -150,7 +151,7 @@ fn boot_brain(
                 boot_count,
                 entropy,
             };
-            Box::new(NativeBrain::new(identity, sim_key(options.seed), cfg))
+            Box::new(NativeBrain::new(identity, &sim_key(options.seed), cfg))
         }
         Firmware::Qemu => Box::new(crate::qemu::QemuBrain::spawn(
             elf,
@@ -159,7 +160,8 @@ fn boot_brain(
                 leader: role == Role::Leader,
                 boot_count,
                 entropy,
-                key: sim_key_bytes(options.seed),
+                broadcast_key: sim_key(options.seed).broadcast_bytes(),
+                robot_key: sim_key(options.seed).robot_bytes(id),
             },
             options.step_timeout,
         )?),
@@ -241,7 +243,7 @@ impl World {
         let key = sim_key(options.seed);
         let station = BaseStation::new(
             StationConfig::from_scenario(&scenario),
-            key.clone(),
+            &key,
             master.random(),
             nonce_base(SIM_EPOCH_MS, master.random()),
         );
@@ -387,7 +389,7 @@ impl World {
                     let mut rng = ChaCha8Rng::seed_from_u64(self.options.seed ^ self.t_us);
                     self.station = BaseStation::new(
                         StationConfig::from_scenario(&self.scenario),
-                        sim_key(self.options.seed),
+                        &sim_key(self.options.seed),
                         rng.random(),
                         nonce_base(SIM_EPOCH_MS + self.t_us / 1000, rng.random()),
                     );

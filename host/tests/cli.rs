@@ -16,7 +16,10 @@ fn basestation(args: &[&str], stdin: Option<&[u8]>) -> (i32, String, String) {
         .unwrap();
     let mut input = child.stdin.take().unwrap();
     if let Some(bytes) = stdin {
-        input.write_all(bytes).unwrap();
+        // A command that refuses its arguments exits without reading: a broken pipe.
+        if let Err(e) = input.write_all(bytes) {
+            assert_eq!(e.kind(), std::io::ErrorKind::BrokenPipe, "{e}");
+        }
     }
     drop(input);
     let out = child.wait_with_output().unwrap();
@@ -143,11 +146,11 @@ fn decode_prints_rejects_for_garbage_and_exits_cleanly() {
 fn decode_reads_genuine_frames_and_verifies_with_the_key() {
     use protocol::link::{Link, Timing};
     use protocol::messages::*;
-    use protocol::{Address, FleetKey, MAX_WIRE};
+    use protocol::{Address, MasterKey, MAX_WIRE};
     let hex = "11".repeat(32);
-    let key = FleetKey::from_hex(&hex).unwrap();
-    let mut base: Link<2> = Link::new(Address::Base, key, 7, 1, Timing::default());
-    base.add_peer(Address::Robot(1));
+    let master = MasterKey::from_hex(&hex).unwrap();
+    let mut base: Link<2> = Link::new(Address::Base, master.broadcast(), 7, 1, Timing::default());
+    base.add_peer(Address::Robot(1), master.robot(1));
     let mut capture = Vec::new();
     let mut buf = [0u8; MAX_WIRE];
     let n = base.answer(Address::Robot(1), 99, 0, &mut buf).unwrap();
@@ -284,7 +287,14 @@ fn robot_config_writes_a_page_the_firmware_accepts() {
     );
     let bytes = std::fs::read(&page).unwrap();
     let c = protocol::config_page::ConfigPage::decode(&bytes).expect("valid page");
-    assert_eq!((c.id, c.leader, c.key), (3, true, [0xab; 32]));
+    let master = protocol::MasterKey::from_bytes(&[0xab; 32]);
+    assert_eq!((c.id, c.leader), (3, true));
+    assert_eq!(c.broadcast_key, master.broadcast_bytes());
+    assert_eq!(
+        c.robot_key,
+        master.robot_bytes(3),
+        "its own key, not the master key"
+    );
     let mode = std::fs::metadata(&page).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o600, "the page holds the key");
 

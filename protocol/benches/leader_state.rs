@@ -11,7 +11,7 @@ use mavlink::dialects::common::{
 use mavlink::{MavHeader, MavlinkVersion, SigningConfig, SigningData};
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{LeaderState, Message, WirePose};
-use protocol::{Address, FleetKey, FrameDecoder, MAX_WIRE};
+use protocol::{Address, FrameDecoder, MasterKey, MAX_WIRE};
 
 const KEY: [u8; 32] = [0x5a; 32];
 
@@ -26,11 +26,23 @@ fn leader_state(i: u32) -> LeaderState {
 
 /// A linked base station → robot pair, as in a running fleet.
 fn linked_pair() -> (Link<1>, Link<1>) {
-    let key = FleetKey::from_bytes(&KEY);
-    let mut base = Link::new(Address::Base, key.clone(), 1, 1 << 40, Timing::default());
-    let mut robot = Link::new(Address::Robot(1), key, 2, 2 << 40, Timing::default());
-    base.add_peer(Address::Robot(1));
-    robot.add_peer(Address::Base);
+    let master = MasterKey::from_bytes(&KEY);
+    let mut base = Link::new(
+        Address::Base,
+        master.broadcast(),
+        1,
+        1 << 40,
+        Timing::default(),
+    );
+    let mut robot = Link::new(
+        Address::Robot(1),
+        master.broadcast(),
+        2,
+        2 << 40,
+        Timing::default(),
+    );
+    base.add_peer(Address::Robot(1), master.robot(1));
+    robot.add_peer(Address::Base, master.robot(1));
     let mut buf = [0u8; MAX_WIRE];
     let n = robot.challenge(Address::Base, 0, &mut buf).unwrap();
     let Some(Ok(Event::Challenged { nonce, .. })) = deliver(&mut base, &buf[..n], 0) else {

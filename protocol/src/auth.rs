@@ -1,10 +1,22 @@
-//! Frame authentication: a 64-bit BLAKE2s MAC keyed by the pre-shared fleet key.
+//! Frame authentication: a 64-bit BLAKE2s MAC keyed by a pre-shared key.
 //!
 //! BLAKE2s is built from 32-bit additions, rotations and xors: fast on a Cortex-M4, no
 //! tables, constant time. Its keyed mode is a MAC by design (no HMAC wrapper), and the
 //! 8-byte output is a real parameter of the hash, not a truncation.
+//!
+//! Keys: the fleet's [`MasterKey`] stays with the base station and the provisioning tool.
+//! From it come the **broadcast key** (frames to [`Address::Broadcast`], which every robot
+//! holds) and one **robot key** per robot (the handshake and every unicast frame between
+//! the base station and that robot, both ways). A robot holds the broadcast key and its
+//! own key only: taken apart, it can forge broadcasts, not another robot's frames nor the
+//! base station's unicasts to another robot.
+//!
+//! [`Address::Broadcast`]: crate::Address::Broadcast
 
-use blake2::digest::{consts::U8, KeyInit, Mac};
+use blake2::digest::{
+    consts::{U32, U8},
+    KeyInit, Mac,
+};
 use blake2::Blake2sMac;
 use zeroize::Zeroize;
 
@@ -12,8 +24,8 @@ use crate::TAG_LEN;
 
 type Mac64 = Blake2sMac<U8>;
 
-/// The fleet's pre-shared 256-bit key. It never travels over the air and is never printed;
-/// its state is zeroed when dropped (blake2's `zeroize`).
+/// A 256-bit frame key. It never travels over the air and is never printed; on std hosts
+/// its state is zeroed when dropped (blake2's `zeroize`, with the `std` feature).
 #[derive(Clone)]
 pub struct FleetKey {
     /// The MAC with the key block already absorbed; cloned for every frame.
@@ -97,6 +109,68 @@ pub fn key_bytes_from_hex(text: &str) -> Result<[u8; 32], BadKey> {
     Ok(bytes)
 }
 
+/// The fleet's master key: only the base station and the provisioning tool hold it. Zeroed
+/// when dropped.
+pub struct MasterKey([u8; 32]);
+
+impl MasterKey {
+    pub fn from_bytes(bytes: &[u8; 32]) -> Self {
+        Self(*bytes)
+    }
+
+    /// Parses 64 hexadecimal digits (surrounding whitespace allowed).
+    pub fn from_hex(text: &str) -> Result<Self, BadKey> {
+        key_bytes_from_hex(text).map(Self)
+    }
+
+    /// The key of frames to [`crate::Address::Broadcast`], held by every robot.
+    pub fn broadcast_bytes(&self) -> [u8; 32] {
+        self.derive(b"sweeper/v1/broadcast", &[])
+    }
+
+    /// Robot `id`'s own key: its handshake and unicast frames, both ways.
+    pub fn robot_bytes(&self, id: u16) -> [u8; 32] {
+        self.derive(b"sweeper/v1/robot", &id.to_le_bytes())
+    }
+
+    pub fn broadcast(&self) -> FleetKey {
+        let mut bytes = self.broadcast_bytes();
+        let key = FleetKey::from_bytes(&bytes);
+        bytes.zeroize();
+        key
+    }
+
+    pub fn robot(&self, id: u16) -> FleetKey {
+        let mut bytes = self.robot_bytes(id);
+        let key = FleetKey::from_bytes(&bytes);
+        bytes.zeroize();
+        key
+    }
+
+    /// BLAKE2s keyed by the master key over a label (a PRF: one key per label).
+    fn derive(&self, label: &[u8], context: &[u8]) -> [u8; 32] {
+        let mut mac =
+            <Blake2sMac<U32> as KeyInit>::new_from_slice(&self.0).expect("32 bytes is a valid key");
+        mac.update(label);
+        mac.update(context);
+        let mut out = [0u8; 32];
+        out.copy_from_slice(&mac.finalize().into_bytes());
+        out
+    }
+}
+
+impl Drop for MasterKey {
+    fn drop(&mut self) {
+        self.0.zeroize();
+    }
+}
+
+impl core::fmt::Debug for MasterKey {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("MasterKey(<secret>)")
+    }
+}
+
 fn hex_digit(c: u8) -> Option<u8> {
     match c {
         b'0'..=b'9' => Some(c - b'0'),
@@ -121,6 +195,30 @@ mod tests {
         assert!(!k.verify(&[1; 8], 6, b"body", &t));
         assert!(!k.verify(&[1; 8], 5, b"bodY", &t));
         assert!(!k.verify(&[1; 8], 5, b"body", &t[..7]));
+    }
+
+    #[test]
+    fn derived_keys_differ_per_purpose_and_robot() {
+        let m = MasterKey::from_bytes(&[5; 32]);
+        let keys = [
+            m.broadcast_bytes(),
+            m.robot_bytes(0),
+            m.robot_bytes(1),
+            [5; 32],
+        ];
+        for (i, a) in keys.iter().enumerate() {
+            for b in &keys[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
+        assert_eq!(
+            m.robot_bytes(1),
+            MasterKey::from_bytes(&[5; 32]).robot_bytes(1)
+        );
+        assert_ne!(
+            m.robot_bytes(1),
+            MasterKey::from_bytes(&[6; 32]).robot_bytes(1)
+        );
     }
 
     #[test]

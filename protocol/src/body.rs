@@ -50,7 +50,9 @@ pub struct BodyConfig {
     pub boot_count: u32,
     /// What the board's noise source gives at this boot (the simulated board has none).
     pub entropy: u32,
-    pub key: [u8; 32],
+    /// The configuration page's keys (`protocol::config_page`).
+    pub broadcast_key: [u8; 32],
+    pub robot_key: [u8; 32],
 }
 
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]

@@ -5,9 +5,10 @@
 //! - [`frame::Header`]: protocol version and message id in one byte, sender, destination,
 //!   a per-stream sequence number and the sender's clock in milliseconds;
 //! - the payload: one [`messages`] struct, postcard-encoded, fixed-point SI units;
-//! - a 64-bit BLAKE2s tag keyed by the pre-shared [`auth::FleetKey`] over the message's
-//!   schema key (CRC_EXTRA-style: a schema change breaks the tag), the sender's session
-//!   and the header and payload bytes.
+//! - a 64-bit BLAKE2s tag over the message's schema key (CRC_EXTRA-style: a schema change
+//!   breaks the tag), the sender's session and the header and payload bytes, keyed by the
+//!   broadcast key or by the robot's own key (both derived from the fleet's
+//!   [`auth::MasterKey`]).
 //!
 //! [`link::Link`] adds sessions, the handshake and replay protection on top; see
 //! `docs/protocol.md` for the wire format byte by byte and the threat model.
@@ -29,7 +30,7 @@ pub mod messages;
 pub mod stream;
 pub mod units;
 
-pub use auth::FleetKey;
+pub use auth::{FleetKey, MasterKey};
 pub use frame::{Address, Header};
 pub use link::{Event, Link};
 pub use messages::Message;

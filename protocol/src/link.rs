@@ -85,6 +85,8 @@ impl Stream {
 #[derive(Debug, Clone)]
 pub struct Peer {
     pub address: Address,
+    /// The key of unicast frames and the handshake with this peer (the robot's key).
+    key: FleetKey,
     session: Option<u32>,
     tx_seq: u32,
     rx_unicast: Stream,
@@ -108,9 +110,10 @@ pub struct Peer {
 }
 
 impl Peer {
-    fn new(address: Address) -> Self {
+    fn new(address: Address, key: FleetKey) -> Self {
         Self {
             address,
+            key,
             session: None,
             tx_seq: 0,
             rx_unicast: Stream::default(),
@@ -168,7 +171,8 @@ pub struct LinkStats {
 /// One node's end of the radio link, with up to `PEERS` peers. No heap, time passed in.
 pub struct Link<const PEERS: usize> {
     me: Address,
-    key: FleetKey,
+    /// The key of broadcast frames (sent or received).
+    broadcast_key: FleetKey,
     session: u32,
     next_nonce: u64,
     broadcast_seq: u32,
@@ -178,12 +182,20 @@ pub struct Link<const PEERS: usize> {
 }
 
 impl<const PEERS: usize> Link<PEERS> {
-    /// `session` must differ at every boot; `nonce_base` must never repeat a nonce this
-    /// node used before (robots: `boot_count << 32`; the base station: random).
-    pub fn new(me: Address, key: FleetKey, session: u32, nonce_base: u64, timing: Timing) -> Self {
+    /// `broadcast_key`: for frames to [`Address::Broadcast`]. `session` must differ at
+    /// every boot; `nonce_base` must never repeat a nonce this node used before, and
+    /// should exceed those it used before (robots: the boot count in the high half; the
+    /// base station: its start time).
+    pub fn new(
+        me: Address,
+        broadcast_key: FleetKey,
+        session: u32,
+        nonce_base: u64,
+        timing: Timing,
+    ) -> Self {
         Self {
             me,
-            key,
+            broadcast_key,
             session,
             next_nonce: nonce_base,
             broadcast_seq: 0,
@@ -201,11 +213,12 @@ impl<const PEERS: usize> Link<PEERS> {
         self.session
     }
 
-    /// Adds a peer; returns false when the table is full. Idempotent.
-    pub fn add_peer(&mut self, address: Address) -> bool {
+    /// Adds a peer with the key of its unicast frames and handshake; returns false when
+    /// the table is full. Idempotent.
+    pub fn add_peer(&mut self, address: Address, key: FleetKey) -> bool {
         match self.peers.binary_search_by(|p| p.address.cmp(&address)) {
             Ok(_) => true,
-            Err(at) => self.peers.insert(at, Peer::new(address)).is_ok(),
+            Err(at) => self.peers.insert(at, Peer::new(address, key)).is_ok(),
         }
     }
 
@@ -240,14 +253,14 @@ impl<const PEERS: usize> Link<PEERS> {
         message: &Message,
         out: &mut [u8],
     ) -> Result<usize, EncodeError> {
-        let seq = if to == Address::Broadcast {
+        let (seq, key) = if to == Address::Broadcast {
             self.broadcast_seq = self.broadcast_seq.wrapping_add(1);
-            self.broadcast_seq
+            (self.broadcast_seq, &self.broadcast_key)
         } else {
             let i = self.index(to).ok_or(EncodeError::UnknownPeer)?;
             let peer = &mut self.peers[i];
             peer.tx_seq = peer.tx_seq.wrapping_add(1);
-            peer.tx_seq
+            (peer.tx_seq, &peer.key)
         };
         let header = Header {
             version: PROTOCOL_VERSION,
@@ -257,7 +270,7 @@ impl<const PEERS: usize> Link<PEERS> {
             seq,
             time_ms: now_ms,
         };
-        frame::seal(&self.key, self.session, &header, message, out)
+        frame::seal(key, self.session, &header, message, out)
     }
 
     /// Sends a fresh challenge to `to`.
@@ -340,8 +353,11 @@ impl<const PEERS: usize> Link<PEERS> {
 
     fn accept_from(&mut self, i: usize, raw: &[u8], now_ms: u32) -> Result<Event, Reject> {
         let session = self.peers[i].session;
-        let (header, message) =
-            frame::open(&self.key, raw, |_| session.ok_or(Reject::UnknownSession))?;
+        let key = match frame::peek_header(raw)?.to {
+            Address::Broadcast => &self.broadcast_key,
+            _ => &self.peers[i].key,
+        };
+        let (header, message) = frame::open(key, raw, |_| session.ok_or(Reject::UnknownSession))?;
         let timing = self.timing;
         let peer = &mut self.peers[i];
         match message {

@@ -24,7 +24,7 @@ fn crash_inputs_stay_fixed() {
             0,
             Timing::default(),
         );
-        link.add_peer(Address::Base);
+        link.add_peer(Address::Base, FleetKey::from_bytes(&[4; 32]));
         let mut dec = FrameDecoder::new();
         for (i, &b) in data.iter().enumerate() {
             if let Some(frame) = dec.push(b) {

@@ -2,13 +2,18 @@
 
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::*;
-use protocol::{Address, FleetKey, FrameDecoder, Reject, MAX_WIRE};
+use protocol::{Address, FleetKey, FrameDecoder, MasterKey, Reject, MAX_WIRE};
 
 type Base = Link<8>;
 type Robot = Link<1>;
 
+fn master() -> MasterKey {
+    MasterKey::from_bytes(&[9; 32])
+}
+
+/// The broadcast key.
 fn key() -> FleetKey {
-    FleetKey::from_bytes(&[9; 32])
+    master().broadcast()
 }
 
 fn base(session: u32) -> Base {
@@ -19,8 +24,8 @@ fn base(session: u32) -> Base {
         (session as u64) << 32,
         Timing::default(),
     );
-    l.add_peer(Address::Robot(1));
-    l.add_peer(Address::Robot(2));
+    l.add_peer(Address::Robot(1), master().robot(1));
+    l.add_peer(Address::Robot(2), master().robot(2));
     l
 }
 
@@ -32,7 +37,7 @@ fn robot(id: u16, boot: u32) -> Robot {
         (boot as u64) << 32 | 0x8000_0000,
         Timing::default(),
     );
-    l.add_peer(Address::Base);
+    l.add_peer(Address::Base, master().robot(id));
     l
 }
 
@@ -129,7 +134,7 @@ fn forged_replayed_and_reordered_frames_are_rejected() {
         0,
         Timing::default(),
     );
-    rogue.add_peer(Address::Robot(1));
+    rogue.add_peer(Address::Robot(1), FleetKey::from_bytes(&[1; 32]));
     let forged = wire(&mut rogue, Address::Broadcast, 400, leader_state(99));
     assert_eq!(deliver(&mut r, &forged, 400), vec![Err(Reject::BadTag)]);
     // A stolen Welcome to a challenge this robot never sent.
@@ -284,7 +289,7 @@ fn a_linked_peer_is_resynchronised_periodically() {
             ..Timing::default()
         },
     );
-    r.add_peer(Address::Base);
+    r.add_peer(Address::Base, master().robot(1));
     robot_links_to(&mut r, &mut b, 0);
     for t in (1_000..10_000).step_by(100) {
         let f = wire(&mut b, Address::Broadcast, t, leader_state(1));
@@ -423,4 +428,56 @@ fn a_late_welcome_never_lowers_the_replay_floor() {
     );
     assert_eq!(deliver(&mut r, &first, 1400), vec![Err(Reject::Replay)]);
     assert_eq!(deliver(&mut r, &second, 1400), vec![Err(Reject::Replay)]);
+}
+
+/// Issue 15, item 5: a robot taken apart holds the broadcast key and its own key. It
+/// cannot speak as another robot to the base station, nor as the base station to another
+/// robot by unicast; it can forge broadcasts (what holds and what does not:
+/// docs/protocol.md).
+#[test]
+fn a_captured_robot_cannot_impersonate_another_robot_or_the_base_stations_unicasts() {
+    let mut b = base(77);
+    let mut r1 = robot(1, 5);
+    let mut r2 = robot(2, 9);
+    robot_links_to(&mut r1, &mut b, 0);
+    robot_links_to(&mut r2, &mut b, 0);
+    let mut buf = [0u8; MAX_WIRE];
+    // The base station learns robot 1's session.
+    let n = b.challenge(Address::Robot(1), 100, &mut buf).unwrap();
+    let Ok(Event::Challenged { from, nonce }) = deliver(&mut r1, &buf[..n], 100)[0] else {
+        panic!()
+    };
+    let n = r1.answer(from, nonce, 110, &mut buf).unwrap();
+    assert!(matches!(
+        deliver(&mut b, &buf[..n], 120)[0],
+        Ok(Event::Linked { .. })
+    ));
+
+    // Robot 2's keys, in the attacker's hands: a link claiming to be robot 1 (its session
+    // is public, it is in the Welcome) and one claiming to be the base station.
+    let captured = master().robot(2);
+    let mut as_robot1 = Robot::new(Address::Robot(1), key(), r1.session(), 0, Timing::default());
+    as_robot1.add_peer(Address::Base, captured.clone());
+    let forged = wire(
+        &mut as_robot1,
+        Address::Base,
+        200,
+        Message::Telemetry(Telemetry::default()),
+    );
+    assert_eq!(deliver(&mut b, &forged, 200), vec![Err(Reject::BadTag)]);
+
+    let mut as_base = Base::new(Address::Base, key(), b.session(), 0, Timing::default());
+    as_base.add_peer(Address::Robot(1), captured);
+    let forged = wire(&mut as_base, Address::Robot(1), 300, leader_state(5));
+    assert_eq!(deliver(&mut r1, &forged, 300), vec![Err(Reject::BadTag)]);
+
+    // What still holds for the attacker: a broadcast, with the broadcast key every robot has.
+    for _ in 0..100 {
+        wire(&mut as_base, Address::Broadcast, 350, leader_state(0));
+    }
+    let forged = wire(&mut as_base, Address::Broadcast, 400, leader_state(6));
+    assert!(matches!(
+        deliver(&mut r1, &forged, 400)[0],
+        Ok(Event::Message { .. })
+    ));
 }

@@ -39,7 +39,14 @@ pub struct RobotNode {
 }
 
 impl RobotNode {
-    pub fn new(identity: Identity, key: FleetKey, config: RobotConfig) -> Self {
+    /// `broadcast_key` and `robot_key`: from the configuration page (see
+    /// `protocol::auth`).
+    pub fn new(
+        identity: Identity,
+        broadcast_key: FleetKey,
+        robot_key: FleetKey,
+        config: RobotConfig,
+    ) -> Self {
         // Below 2³¹ in the low half: the counter never carries into the boot count.
         let nonce_base = (identity.boot_count as u64) << 32 | (identity.entropy >> 1) as u64;
         let timing = Timing {
@@ -50,12 +57,12 @@ impl RobotNode {
         let session = identity.entropy ^ identity.boot_count.wrapping_mul(0x9E37_79B9);
         let mut link = Link::new(
             Address::Robot(identity.id),
-            key,
+            broadcast_key,
             session,
             nonce_base,
             timing,
         );
-        link.add_peer(Address::Base);
+        link.add_peer(Address::Base, robot_key);
         Self {
             identity,
             link,

@@ -9,21 +9,27 @@ use protocol::link::{Event, Link, Timing};
 use protocol::messages::*;
 use protocol::{Address, FleetKey, FrameDecoder, MAX_WIRE};
 
+/// The broadcast key.
 fn key() -> FleetKey {
     FleetKey::from_bytes(&[4; 32])
+}
+
+/// Robot 1's own key.
+fn robot_key() -> FleetKey {
+    FleetKey::from_bytes(&[5; 32])
 }
 
 #[test]
 fn follower_links_follows_and_reports() {
     let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
-    base.add_peer(Address::Robot(1));
+    base.add_peer(Address::Robot(1), robot_key());
     let id = Identity {
         id: 1,
         role: Role::Follower,
         boot_count: 3,
         entropy: 0x1234_5678,
     };
-    let mut node = RobotNode::new(id, key(), RobotConfig::DEFAULT);
+    let mut node = RobotNode::new(id, key(), robot_key(), RobotConfig::DEFAULT);
     let mut base_dec = FrameDecoder::new();
     let mut to_base: Vec<u8> = Vec::new();
     let mut to_robot: Vec<u8> = Vec::new();
@@ -114,12 +120,12 @@ fn a_repeated_boot_count_does_not_reopen_a_recorded_session() {
         entropy,
     };
     let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
-    base.add_peer(Address::Robot(1));
+    base.add_peer(Address::Robot(1), robot_key());
     let sensors = Sensors::default();
 
     // The earlier boot: it challenges, the base answers; the attacker records the answer
     // and the leader states that follow.
-    let mut first = RobotNode::new(boot(0xAAAA_0001), key(), RobotConfig::DEFAULT);
+    let mut first = RobotNode::new(boot(0xAAAA_0001), key(), robot_key(), RobotConfig::DEFAULT);
     let mut hello = Vec::new();
     first.tick(0, &sensors, &mut |b| hello.extend_from_slice(b));
     let mut recorded = Vec::new();
@@ -148,7 +154,7 @@ fn a_repeated_boot_count_does_not_reopen_a_recorded_session() {
     }
 
     // The same count again, other noise: its own challenge first, then the recording.
-    let mut again = RobotNode::new(boot(0x5555_0002), key(), RobotConfig::DEFAULT);
+    let mut again = RobotNode::new(boot(0x5555_0002), key(), robot_key(), RobotConfig::DEFAULT);
     again.tick(0, &sensors, &mut |_| {});
     again.receive(&recorded, 50, &mut |_| {});
     assert!(!again.link().peer(Address::Base).unwrap().is_linked());

@@ -20,7 +20,9 @@ pub struct Config {
     pub boot_count: u32,
     /// Noise read at this boot, mixed with the MCU's unique id (see `node::Identity`).
     pub entropy: u32,
-    pub key: [u8; 32],
+    /// The key of broadcast frames, and this robot's own key (`protocol::auth`).
+    pub broadcast_key: [u8; 32],
+    pub robot_key: [u8; 32],
 }
 
 /// The node's storage, zeroed (`.bss`): an `Option<RobotNode>` in a static would put
@@ -51,7 +53,12 @@ pub fn configure(c: Config) {
         boot_count: c.boot_count,
         entropy: c.entropy,
     };
-    let node = RobotNode::new(identity, FleetKey::from_bytes(&c.key), RobotConfig::DEFAULT);
+    let node = RobotNode::new(
+        identity,
+        FleetKey::from_bytes(&c.broadcast_key),
+        FleetKey::from_bytes(&c.robot_key),
+        RobotConfig::DEFAULT,
+    );
     let Some(node) = NODE_CELL.try_init(node) else {
         defmt::error!("configured twice: ignored");
         return;

@@ -11,7 +11,7 @@ use protocol::messages::{
     faults, FormationCommand, LeaderState, Message, RobotMode, Slot, Stop, Telemetry,
     VelocityCommand, WirePose,
 };
-use protocol::{units, Address, FleetKey, FrameDecoder, Reject, RejectCounts, MAX_WIRE};
+use protocol::{units, Address, FrameDecoder, MasterKey, Reject, RejectCounts, MAX_WIRE};
 
 use crate::formation::{FormationManager, FormationSpec, Target};
 use crate::map::Map;
@@ -178,17 +178,19 @@ pub fn nonce_base(start_ms: u64, random: u32) -> u64 {
 
 impl BaseStation {
     /// `session`: fresh at every start (random); `nonce_base`: see [`nonce_base`].
-    pub fn new(cfg: StationConfig, key: FleetKey, session: u32, nonce_base: u64) -> Self {
+    /// `master`: the fleet's master key; the station derives the broadcast key and each
+    /// robot's key from it (`protocol::auth`).
+    pub fn new(cfg: StationConfig, master: &MasterKey, session: u32, nonce_base: u64) -> Self {
         let mut link = Box::new(Link::new(
             Address::Base,
-            key,
+            master.broadcast(),
             session,
             nonce_base,
             Timing::default(),
         ));
         let mut robots = BTreeMap::new();
         for id in std::iter::once(cfg.leader).chain(cfg.followers.iter().copied()) {
-            link.add_peer(Address::Robot(id));
+            link.add_peer(Address::Robot(id), master.robot(id));
             robots.insert(id, RobotStatus::default());
         }
         let planner = match cfg.planner.guidance {

@@ -4,7 +4,7 @@ use base_station::scenario::Scenario;
 use base_station::station::{BaseStation, StationConfig};
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::*;
-use protocol::{Address, FleetKey, FrameDecoder, MAX_WIRE};
+use protocol::{Address, FrameDecoder, MasterKey, MAX_WIRE};
 
 fn scenario() -> Scenario {
     let path = concat!(
@@ -16,23 +16,18 @@ fn scenario() -> Scenario {
 
 #[test]
 fn malformed_and_absurd_telemetry_does_not_stop_the_station() {
-    let key = [5u8; 32];
-    let mut station = BaseStation::new(
-        StationConfig::from_scenario(&scenario()),
-        FleetKey::from_bytes(&key),
-        1,
-        2,
-    );
+    let master = MasterKey::from_bytes(&[5u8; 32]);
+    let mut station = BaseStation::new(StationConfig::from_scenario(&scenario()), &master, 1, 2);
     // Robot 1 links properly, then sends the most absurd telemetry a valid frame can hold,
     // then garbage.
     let mut robot: Link<1> = Link::new(
         Address::Robot(1),
-        FleetKey::from_bytes(&key),
+        master.broadcast(),
         9,
         9 << 32,
         Timing::default(),
     );
-    robot.add_peer(Address::Base);
+    robot.add_peer(Address::Base, master.robot(1));
     let mut buf = [0u8; MAX_WIRE];
     let mut dec = FrameDecoder::new();
     let mut now = 0;

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use protocol::frame::{self, Address, Header};
-use protocol::{FleetKey, FrameDecoder, Message, Reject};
+use protocol::{FrameDecoder, MasterKey, Message, Reject};
 use serde_json::{json, Value};
 
 #[derive(Args, Debug)]
@@ -46,12 +46,16 @@ fn frame_json(header: &Header, message: &Message, verified: bool) -> Value {
 }
 
 /// Decodes one deframed frame.
-fn decode_one(raw: &[u8], key: Option<&FleetKey>, sessions: &mut HashMap<Address, u32>) -> Value {
+fn decode_one(
+    raw: &[u8],
+    master: Option<&MasterKey>,
+    sessions: &mut HashMap<Address, u32>,
+) -> Value {
     let header = match frame::peek_header(raw) {
         Ok(h) => h,
         Err(reason) => return json!({"ok": false, "reject": reason.name()}),
     };
-    let Some(key) = key else {
+    let Some(master) = master else {
         return match frame::parse_unverified(raw) {
             Ok((h, m)) => frame_json(&h, &m, false),
             Err(reason) => json!({"ok": false, "reject": reason.name()}),
@@ -69,7 +73,13 @@ fn decode_one(raw: &[u8], key: Option<&FleetKey>, sessions: &mut HashMap<Address
             Err(reason) => json!({"ok": false, "reject": reason.name()}),
         };
     }
-    match frame::open(key, raw, |_| known.ok_or(Reject::UnknownSession)) {
+    // The key the sender used: broadcast, or the robot's own on its link with the base.
+    let key = match (header.to, header.from) {
+        (Address::Broadcast, _) => master.broadcast(),
+        (Address::Robot(id), _) | (_, Address::Robot(id)) => master.robot(id),
+        _ => master.broadcast(),
+    };
+    match frame::open(&key, raw, |_| known.ok_or(Reject::UnknownSession)) {
         Ok((h, m)) => {
             if let Message::Welcome(w) = m {
                 sessions.insert(h.from, w.session);

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use base_station::scenario::Scenario;
 use clap::Args;
-use protocol::FleetKey;
+use protocol::MasterKey;
 use zeroize::Zeroizing;
 
 /// The scenarios shipped with the program, by name.
@@ -58,18 +58,19 @@ pub fn load_scenario(arg: &str) -> anyhow::Result<Scenario> {
 /// Where the fleet key comes from. Never from the binary: a real run without one fails.
 #[derive(Args, Debug, Clone)]
 pub struct KeyArgs {
-    /// File holding the fleet key: 64 hexadecimal digits.
+    /// File holding the fleet's master key: 64 hexadecimal digits.
     #[arg(long, env = "SWEEPER_KEY_FILE")]
     pub key_file: Option<PathBuf>,
 }
 
 impl KeyArgs {
-    /// The key from `--key-file`, `SWEEPER_KEY_FILE`, or `SWEEPER_FLEET_KEY` (hex), if any.
-    pub fn load(&self) -> anyhow::Result<Option<FleetKey>> {
+    /// The fleet's master key from `--key-file`, `SWEEPER_KEY_FILE`, or
+    /// `SWEEPER_FLEET_KEY` (hex), if any.
+    pub fn load(&self) -> anyhow::Result<Option<MasterKey>> {
         let Some(hex) = self.load_hex()? else {
             return Ok(None);
         };
-        Ok(Some(FleetKey::from_hex(&hex).context(self.source())?))
+        Ok(Some(MasterKey::from_hex(&hex).context(self.source())?))
     }
 
     /// The key's text, zeroed when dropped.

@@ -1,6 +1,7 @@
 //! `basestation robot-config --id N --role leader|follower -o FILE [--boot-log FILE]`: the
-//! 48-byte configuration page a robot reads at boot (its id, its role, the fleet key), and
-//! the first word of its boot counter. Flash them to the NUCLEO-F411RE's sectors 6 and 7:
+//! 80-byte configuration page a robot reads at boot (its id, its role, the broadcast key and
+//! its own key, derived from the fleet's master key), and the first word of its boot
+//! counter. Flash them to the NUCLEO-F411RE's sectors 6 and 7:
 //! `probe-rs download --chip STM32F411RETx --binary-format bin --base-address 0x08040000 FILE`
 //! (and `0x08060000` for the boot log). Both files are written readable by their owner only:
 //! the page holds the key.
@@ -46,15 +47,11 @@ pub fn run(args: RobotConfigArgs) -> anyhow::Result<()> {
     if args.id == u16::MAX {
         bail!("id 65535 is reserved");
     }
-    let Some(hex) = args.key.load_hex()? else {
+    let Some(master) = args.key.load()? else {
         bail!("no fleet key: pass --key-file FILE or set SWEEPER_FLEET_KEY");
     };
-    let key = Zeroizing::new(protocol::auth::key_bytes_from_hex(&hex).context("the fleet key")?);
-    let page = ConfigPage {
-        id: args.id,
-        leader: matches!(args.role, RoleArg::Leader),
-        key: *key,
-    };
+    // The page holds the broadcast key and this robot's own key, never the master key.
+    let page = ConfigPage::new(args.id, matches!(args.role, RoleArg::Leader), &master);
     let encoded = Zeroizing::new(page.encode());
     write_private(&args.output, &encoded[..])?;
     if let Some(path) = &args.boot_log {

@@ -63,7 +63,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     );
     let mut station = BaseStation::new(
         StationConfig::from_scenario(&scenario),
-        key,
+        &key,
         session,
         nonce_base,
     );

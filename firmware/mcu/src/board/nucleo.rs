@@ -133,7 +133,8 @@ pub fn init() -> Board {
             leader: c.leader,
             boot_count: next_boot_count(&mut flash)?,
             entropy,
-            key: c.key,
+            broadcast_key: c.broadcast_key,
+            robot_key: c.robot_key,
         })
     });
     if config.is_none() {

@@ -117,7 +117,8 @@ pub async fn body_task(spawner: Spawner) {
         leader: config.leader,
         boot_count: config.boot_count,
         entropy: config.entropy,
-        key: config.key,
+        broadcast_key: config.broadcast_key,
+        robot_key: config.robot_key,
     });
     crate::tasks::start(spawner, radio::Rx, radio::Tx, Body);
     // The tasks start at boot time, before the first step moves the clock.
