@@ -72,7 +72,8 @@ pub struct RobotConfig {
     pub in_formation_below: f32,
     /// Tracking error over which a follower in formation counts as joining again, m.
     pub joining_above: f32,
-    /// Pose-fix blending gain per fix, 0..1 (complementary filter).
+    /// Pose-fix blending gain per fix, 0..1 (complementary filter), for a perfect fix; a
+    /// fix with σ counts `1 / (1 + (σ / 0.1 m)²)` of it.
     pub fix_gain: f32,
     /// A fix farther than this from the odometry (plus 3σ) is an outlier, m.
     pub fix_gate: f32,

@@ -23,6 +23,9 @@ const HISTORY: usize = 16;
 /// jump shorter than that is ignored (odometry drifts little in 5 s); a lasting one means
 /// the localization system re-anchored, and every robot must follow it.
 const RELOCALIZE_AFTER: u8 = 50;
+/// A fix with this σ counts half as much as a perfect one: the blending gain is
+/// `fix_gain / (1 + (σ / FIX_SIGMA_REF)²)`, so a vaguer fix pulls less (m).
+const FIX_SIGMA_REF: f32 = 0.1;
 
 /// A pose fix, time already in this robot's clock.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -176,7 +179,8 @@ impl Odometry {
             return FixOutcome::Relocalized;
         }
         self.outliers_in_row = 0;
-        let w = cfg.fix_gain;
+        let r = fix.sigma / FIX_SIGMA_REF;
+        let w = cfg.fix_gain / (1.0 + r * r);
         self.shift(w * ix, w * iy, w * ih);
         self.last_fix_ms = Some(now_ms);
         self.fixes_applied += 1;

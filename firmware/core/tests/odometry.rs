@@ -69,3 +69,25 @@ fn fixes_pull_the_pose_and_outliers_are_dropped() {
     let bad = fix(Pose::new(f32::NAN, 0.0, 0.0), 7200);
     assert_eq!(odo.apply_fix(&bad, 7200, &CFG), FixOutcome::Invalid);
 }
+
+/// Issue 13: a fix with a larger σ counts for less (the gate widens with σ, the pull
+/// shrinks): the same 0.3 m offset, σ 0.02 m vs 0.3 m.
+#[test]
+fn a_vaguer_fix_pulls_less() {
+    let pull = |sigma: f32| {
+        let mut odo = Odometry::new();
+        odo.update([0, 0], 0, &CFG);
+        odo.apply_fix(&fix(Pose::new(0.0, 0.0, 0.0), 0), 0, &CFG);
+        let off = PoseFixSample {
+            pose: Pose::new(0.3, 0.0, 0.0),
+            sigma,
+            time_ms: 100,
+        };
+        assert_eq!(odo.apply_fix(&off, 100, &CFG), FixOutcome::Applied);
+        odo.pose().unwrap().x
+    };
+    let (sharp, vague) = (pull(0.02), pull(0.3));
+    println!("0.3 m offset: pulled {sharp:.3} m by a 0.02 m fix, {vague:.3} m by a 0.3 m fix");
+    assert!(sharp > 0.06 && sharp < 0.3 * CFG.fix_gain + 1e-6, "{sharp}");
+    assert!(vague < sharp / 5.0, "{vague} vs {sharp}");
+}
