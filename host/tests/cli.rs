@@ -317,8 +317,8 @@ fn robot_config_writes_a_page_the_firmware_accepts() {
     let big = dir.join("big.key");
     std::fs::write(&big, vec![b'a'; 4096]).unwrap();
     std::fs::set_permissions(&big, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let (code, _, err) = basestation(
-        &[
+    let refused = |extra: &[&str]| {
+        let mut args = vec![
             "robot-config",
             "--id",
             "3",
@@ -326,26 +326,14 @@ fn robot_config_writes_a_page_the_firmware_accepts() {
             "leader",
             "-o",
             "/dev/null",
-            "--key-file",
-            big.to_str().unwrap(),
-        ],
-        None,
-    );
-    assert_eq!(code, 1);
+        ];
+        args.extend_from_slice(extra);
+        let (code, _, err) = basestation(&args, None);
+        assert_eq!(code, 1);
+        err
+    };
+    let err = refused(&["--key-file", big.to_str().unwrap()]);
     assert!(err.contains("is not a key file"), "{err}");
-
-    let (code, _, err) = basestation(
-        &[
-            "robot-config",
-            "--id",
-            "3",
-            "--role",
-            "leader",
-            "-o",
-            "/dev/null",
-        ],
-        None,
-    );
-    assert_eq!(code, 1);
+    let err = refused(&[]);
     assert!(err.contains("no fleet key"), "{err}");
 }
