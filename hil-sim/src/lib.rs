@@ -15,6 +15,7 @@ pub mod plant;
 pub mod plot;
 pub mod qemu;
 pub mod radio;
+pub mod recording;
 pub mod report;
 pub mod run;
 pub mod scanner;

@@ -1,6 +1,7 @@
 //! README's first command, as a user runs it: `basestation sim` writes a report with the
-//! public keys and a figure.
+//! public keys, a figure and an MCAP recording (read back here with the `mcap` crate).
 
+use std::collections::BTreeMap;
 use std::process::Command;
 
 #[test]
@@ -9,12 +10,15 @@ fn basestation_sim_writes_report_and_figure() {
     std::fs::create_dir_all(&dir).unwrap();
     let report = dir.join("r.json");
     let plot = dir.join("f.svg");
+    let recording = dir.join("run.mcap");
     let status = Command::new(env!("CARGO_BIN_EXE_basestation"))
         .args(["sim", "paper-passage", "--seed", "3"])
         .arg("--report")
         .arg(&report)
         .arg("--plot")
         .arg(&plot)
+        .arg("--mcap")
+        .arg(&recording)
         .status()
         .unwrap();
     assert!(status.success());
@@ -58,6 +62,48 @@ fn basestation_sim_writes_report_and_figure() {
     }
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("tracking error"));
+
+    // The recording: every channel with its schema, and as many messages as the run has
+    // samples (the report's sim time at 10 Hz), robots and station events.
+    let bytes = std::fs::read(&recording).unwrap();
+    let mut count: BTreeMap<String, (String, u64)> = BTreeMap::new();
+    let mut last_ns = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let schema = m
+            .channel
+            .schema
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
+        count
+            .entry(m.channel.topic.clone())
+            .or_insert((schema, 0))
+            .1 += 1;
+        last_ns = last_ns.max(m.log_time);
+    }
+    let samples = (r["sim_time_s"].as_f64().unwrap() * 10.0).round() as u64;
+    let events = r["station_events"].as_array().unwrap().len() as u64;
+    assert_eq!(count["/map"], ("foxglove.SceneUpdate".to_string(), 1));
+    assert_eq!(
+        count["/robots"],
+        ("foxglove.SceneUpdate".to_string(), samples)
+    );
+    for id in 0..3 {
+        assert_eq!(
+            count[&format!("/robot_{id}/pose")],
+            ("foxglove.PoseInFrame".to_string(), samples)
+        );
+        assert_eq!(count[&format!("/robot_{id}/state")].1, samples);
+    }
+    assert_eq!(count["/events"], ("foxglove.Log".to_string(), events));
+    assert!(events > 0);
+    // Stamped with the simulated clock.
+    let end_ns = (r["sim_time_s"].as_f64().unwrap() * 1e9) as u64;
+    assert!(
+        last_ns <= end_ns && last_ns + 200_000_000 >= end_ns,
+        "{last_ns} vs {end_ns}"
+    );
 }
 
 #[test]
@@ -66,7 +112,15 @@ fn sim_takes_faults_on_the_command_line() {
     std::fs::create_dir_all(&dir).unwrap();
     let report = dir.join("r.json");
     let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
-        .args(["sim", "paper-passage", "--plot", "/dev/null", "--fault"])
+        .args([
+            "sim",
+            "paper-passage",
+            "--plot",
+            "/dev/null",
+            "--mcap",
+            "/dev/null",
+            "--fault",
+        ])
         .arg(r#"{ at_s = 30, kind = "leader_dies" }"#)
         .arg("--report")
         .arg(&report)

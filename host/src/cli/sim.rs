@@ -30,6 +30,10 @@ pub struct SimArgs {
     /// Where to write the SVG figure [default: out/SCENARIO.svg].
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Where to write the MCAP recording, for Foxglove or Lichtblick [default:
+    /// out/SCENARIO.mcap] (docs/sim.md#the-recording).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub mcap: Option<PathBuf>,
     /// Also write a CSV trace: one row per robot per sample (docs/sim.md#the-trace).
     #[arg(long, value_name = "FILE.csv")]
     pub trace: Option<PathBuf>,
@@ -86,9 +90,17 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     let plot_path = args
         .plot
         .unwrap_or_else(|| PathBuf::from(format!("out/{name}.svg")));
-    for p in [Some(&report_path), Some(&plot_path), args.trace.as_ref()]
-        .into_iter()
-        .flatten()
+    let mcap_path = args
+        .mcap
+        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.mcap")));
+    for p in [
+        Some(&report_path),
+        Some(&plot_path),
+        Some(&mcap_path),
+        args.trace.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
     {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir)
@@ -107,7 +119,8 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         hil_sim::trace::write_csv(&world.recorder, &roles, std::io::BufWriter::new(file))
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
-    print_table(&report, &report_path, &plot_path);
+    hil_sim::recording::write_mcap(&world, &report, &mcap_path).map_err(anyhow::Error::msg)?;
+    print_table(&report, &report_path, &plot_path, &mcap_path);
     Ok(())
 }
 
@@ -129,7 +142,7 @@ fn num(v: Option<f64>) -> String {
     v.map_or("—".to_string(), |v| format!("{v:.2}"))
 }
 
-fn print_table(r: &Report, report_path: &Path, plot_path: &Path) {
+fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Path) {
     let rtf = if r.wall_time_s > 0.0 {
         r.sim_time_s / r.wall_time_s
     } else {
@@ -233,8 +246,9 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path) {
         r.link.frames_rejected
     );
     outln!(
-        "report {} · figure {}",
+        "report {} · figure {} · recording {}",
         report_path.display(),
-        plot_path.display()
+        plot_path.display(),
+        mcap_path.display()
     );
 }

@@ -1,0 +1,258 @@
+//! A run recorded as MCAP with the Foxglove SDK, to open in Foxglove or Lichtblick: the site
+//! map and the robots as a 3D scene (obstacles, footprints, headings, followers' slot
+//! points), each robot's pose, speeds and tracking error (plottable), and the base
+//! station's events as log messages. Timestamps are the simulated clock (nanoseconds from
+//! the run's start). Written after the run from what the recorder kept, through a context
+//! of its own, so runs recorded side by side (tests) never mix.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use base_station::geometry::Obstacle;
+use foxglove::messages::{
+    line_primitive, log, ArrowPrimitive, Color, CylinderPrimitive, LinePrimitive, Log, Point3,
+    Pose, PoseInFrame, Quaternion, SceneEntity, SceneUpdate, SpherePrimitive, Timestamp, Vector3,
+};
+use foxglove::{Context, McapWriter};
+
+use crate::report::Report;
+use crate::world::World;
+
+/// The frame every position is in: the site's metric frame.
+const FRAME: &str = "site";
+
+/// What a robot's state channel carries (plottable in Foxglove's Plot panel).
+#[derive(foxglove::Encode)]
+struct RobotState {
+    /// Forward speed, m/s.
+    v: f64,
+    /// Turn rate, rad/s.
+    omega: f64,
+    /// Distance from the follower's control point to its slot, m (−1: not a follower).
+    tracking_error: f64,
+    /// The formation's blend, 0 wide … 1 line.
+    blend: f64,
+}
+
+/// Messages written per topic.
+pub type Counts = BTreeMap<String, u64>;
+
+fn nanos(t_s: f64) -> u64 {
+    (t_s * 1e9).round() as u64
+}
+
+fn stamp(t_s: f64) -> Option<Timestamp> {
+    Some(Timestamp::new(
+        t_s.trunc() as u32,
+        (t_s.fract() * 1e9) as u32,
+    ))
+}
+
+fn point(x: f64, y: f64) -> Point3 {
+    Point3 { x, y, z: 0.0 }
+}
+
+fn pose(x: f64, y: f64, z: f64, heading: f64) -> Option<Pose> {
+    let h = 0.5 * heading;
+    Some(Pose {
+        position: Some(Vector3 { x, y, z }),
+        orientation: Some(Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: h.sin(),
+            w: h.cos(),
+        }),
+    })
+}
+
+fn color(r: f64, g: f64, b: f64) -> Option<Color> {
+    Some(Color { r, g, b, a: 1.0 })
+}
+
+/// The site's obstacles: circles as 1 m cylinders, segments and polygons as lines.
+fn map_entity(world: &World) -> SceneEntity {
+    let grey = color(0.45, 0.45, 0.5);
+    let mut e = SceneEntity {
+        frame_id: FRAME.into(),
+        id: "map".into(),
+        ..Default::default()
+    };
+    for o in world.map.obstacles() {
+        match o {
+            Obstacle::Circle { center, radius } => e.cylinders.push(CylinderPrimitive {
+                pose: pose(center.x, center.y, 0.5, 0.0),
+                size: Some(Vector3 {
+                    x: 2.0 * radius,
+                    y: 2.0 * radius,
+                    z: 1.0,
+                }),
+                bottom_scale: 1.0,
+                top_scale: 1.0,
+                color: grey,
+            }),
+            Obstacle::Segment { a, b } => e.lines.push(LinePrimitive {
+                r#type: line_primitive::Type::LineStrip as i32,
+                thickness: 0.1,
+                points: vec![point(a.x, a.y), point(b.x, b.y)],
+                color: grey,
+                ..Default::default()
+            }),
+            Obstacle::Polygon { points } => e.lines.push(LinePrimitive {
+                r#type: line_primitive::Type::LineLoop as i32,
+                thickness: 0.1,
+                points: points.iter().map(|p| point(p.x, p.y)).collect(),
+                color: grey,
+                ..Default::default()
+            }),
+        }
+    }
+    e
+}
+
+/// Writes the run to `path`; returns how many messages each topic got.
+pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts, String> {
+    let ctx: Arc<Context> = Context::new();
+    let file = std::fs::File::create(path)
+        .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+    let mcap = McapWriter::new()
+        .context(&ctx)
+        .create(std::io::BufWriter::new(file))
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    let mut counts = Counts::new();
+    let mut count = |topic: &str| *counts.entry(topic.to_string()).or_default() += 1;
+
+    let map = ctx.channel_builder("/map").build::<SceneUpdate>();
+    map.log_with_time(
+        &SceneUpdate {
+            entities: vec![map_entity(world)],
+            ..Default::default()
+        },
+        0u64,
+    );
+    count("/map");
+
+    let scene = ctx.channel_builder("/robots").build::<SceneUpdate>();
+    let poses: Vec<_> = world
+        .robots
+        .iter()
+        .map(|r| {
+            ctx.channel_builder(format!("/robot_{}/pose", r.id))
+                .build::<PoseInFrame>()
+        })
+        .collect();
+    let states: Vec<_> = world
+        .robots
+        .iter()
+        .map(|r| {
+            ctx.channel_builder(format!("/robot_{}/state", r.id))
+                .build::<RobotState>()
+        })
+        .collect();
+    let footprint = world
+        .robots
+        .first()
+        .map_or(0.3, |r| r.body.params.footprint);
+    for s in &world.recorder.samples {
+        let t = nanos(s.t);
+        let mut entities = Vec::new();
+        for ((r, sample), (pose_ch, state_ch)) in world
+            .robots
+            .iter()
+            .zip(&s.robots)
+            .zip(poses.iter().zip(&states))
+        {
+            let hue = if r.role == base_station::scenario::Role::Leader {
+                color(0.85, 0.3, 0.1)
+            } else {
+                color(0.1, 0.45, 0.85)
+            };
+            let mut e = SceneEntity {
+                timestamp: stamp(s.t),
+                frame_id: FRAME.into(),
+                id: format!("robot_{}", r.id),
+                ..Default::default()
+            };
+            e.cylinders.push(CylinderPrimitive {
+                pose: pose(sample.x, sample.y, 0.15, sample.heading),
+                size: Some(Vector3 {
+                    x: 2.0 * footprint,
+                    y: 2.0 * footprint,
+                    z: 0.3,
+                }),
+                bottom_scale: 1.0,
+                top_scale: 1.0,
+                color: hue,
+            });
+            e.arrows.push(ArrowPrimitive {
+                pose: pose(sample.x, sample.y, 0.35, sample.heading),
+                shaft_length: footprint,
+                shaft_diameter: 0.06,
+                head_length: 0.15,
+                head_diameter: 0.15,
+                color: color(1.0, 1.0, 1.0),
+            });
+            if let Some((sx, sy)) = sample.slot {
+                e.spheres.push(SpherePrimitive {
+                    pose: pose(sx, sy, 0.05, 0.0),
+                    size: Some(Vector3 {
+                        x: 0.15,
+                        y: 0.15,
+                        z: 0.15,
+                    }),
+                    color: color(0.2, 0.8, 0.3),
+                });
+            }
+            entities.push(e);
+            pose_ch.log_with_time(
+                &PoseInFrame {
+                    timestamp: stamp(s.t),
+                    frame_id: FRAME.into(),
+                    pose: pose(sample.x, sample.y, 0.0, sample.heading),
+                },
+                t,
+            );
+            count(pose_ch.topic());
+            state_ch.log_with_time(
+                &RobotState {
+                    v: sample.v,
+                    omega: sample.omega,
+                    tracking_error: sample.error.unwrap_or(-1.0),
+                    blend: s.blend,
+                },
+                t,
+            );
+            count(state_ch.topic());
+        }
+        scene.log_with_time(
+            &SceneUpdate {
+                entities,
+                ..Default::default()
+            },
+            t,
+        );
+        count("/robots");
+    }
+
+    let events = ctx.channel_builder("/events").build::<Log>();
+    for e in &report.station_events {
+        let message = match e.robot {
+            Some(id) => format!("{} (robot {id})", e.event),
+            None => e.event.clone(),
+        };
+        events.log_with_time(
+            &Log {
+                timestamp: stamp(e.at_s),
+                level: log::Level::Info as i32,
+                message,
+                name: "base station".into(),
+                ..Default::default()
+            },
+            nanos(e.at_s),
+        );
+        count("/events");
+    }
+    mcap.close()
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(counts)
+}
