@@ -1,7 +1,8 @@
 //! A run recorded as MCAP with the Foxglove SDK, to open in Foxglove or Lichtblick: the site
 //! map and the robots as a 3D scene (obstacles, footprints, headings, followers' slot
-//! points), each robot's pose, speeds and tracking error (plottable), and the base
-//! station's events as log messages. Timestamps are the simulated clock (nanoseconds from
+//! points), each robot's pose, speeds and tracking error (plottable), the base station's
+//! events as log messages, and the raw radio bytes every node sent (`/radio`, JSON, which
+//! `basestation decode` reads). Timestamps are the simulated clock (nanoseconds from
 //! the run's start). Written after the run from what the recorder kept, through a context
 //! of its own, so runs recorded side by side (tests) never mix.
 
@@ -14,7 +15,7 @@ use foxglove::messages::{
     line_primitive, log, ArrowPrimitive, Color, CylinderPrimitive, LinePrimitive, Log, Point3,
     Pose, PoseInFrame, Quaternion, SceneEntity, SceneUpdate, SpherePrimitive, Timestamp, Vector3,
 };
-use foxglove::{Context, McapWriter};
+use foxglove::{Context, McapWriter, PartialMetadata, Schema};
 
 use crate::report::Report;
 use crate::world::World;
@@ -35,8 +36,18 @@ struct RobotState {
     blend: f64,
 }
 
+/// The radio channel's topic and the JSON schema of its messages: `from` (`base`,
+/// `robot:N`, `attacker`) and `hex` (the bytes it put on the air, frames with their
+/// delimiters).
+pub const RADIO_TOPIC: &str = "/radio";
+const RADIO_SCHEMA: &str = r#"{"type":"object","properties":{"from":{"type":"string"},"hex":{"type":"string"}},"required":["from","hex"]}"#;
+
 /// Messages written per topic.
 pub type Counts = BTreeMap<String, u64>;
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
 
 fn nanos(t_s: f64) -> u64 {
     (t_s * 1e9).round() as u64
@@ -251,6 +262,31 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
             nanos(e.at_s),
         );
         count("/events");
+    }
+    let radio = ctx
+        .channel_builder(RADIO_TOPIC)
+        .message_encoding("json")
+        .schema(Schema::new(
+            "RadioBytes",
+            "jsonschema",
+            RADIO_SCHEMA.as_bytes(),
+        ))
+        .build_raw()
+        .map_err(|e| format!("the radio channel: {e}"))?;
+    for (t_us, from, bytes) in &world.transmitted {
+        let from = match *from {
+            0 => "base".to_string(),
+            n if n <= world.robots.len() => format!("robot:{}", world.robots[n - 1].id),
+            _ => "attacker".to_string(),
+        };
+        let message = serde_json::json!({ "from": from, "hex": hex(bytes) }).to_string();
+        radio.log_with_meta(
+            message.as_bytes(),
+            PartialMetadata {
+                log_time: Some(t_us * 1000),
+            },
+        );
+        count(RADIO_TOPIC);
     }
     mcap.close()
         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;

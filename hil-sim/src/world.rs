@@ -203,6 +203,9 @@ pub struct World {
     node_of: HashMap<u16, NodeId>,
     loc_rng: ChaCha8Rng,
     pub recorder: Recorder,
+    /// What each node put on the air, as sent: (µs, node: 0 the base station, 1.. the
+    /// robots, then the attacker, bytes). For the recording's radio channel.
+    pub transmitted: Vec<(u64, NodeId, Vec<u8>)>,
     pub options: SimOptions,
     pub t_us: u64,
     goal_at_us: Option<u64>,
@@ -327,6 +330,7 @@ impl World {
             robots,
             node_of,
             recorder,
+            transmitted: Vec::new(),
             scenario,
             options,
             t_us: 0,
@@ -358,6 +362,9 @@ impl World {
         let t_s = self.t_us as f64 / 1e6;
         let on_air = self.injector.overheard(from, self.t_us, bytes);
         let bytes = &on_air[..];
+        if !bytes.is_empty() {
+            self.transmitted.push((self.t_us, from, bytes.to_vec()));
+        }
         let silenced = self.injector.silenced(from, t_s);
         let params = *self.radio.params();
         if silenced {

@@ -104,6 +104,49 @@ fn basestation_sim_writes_report_and_figure() {
         last_ns <= end_ns && last_ns + 200_000_000 >= end_ns,
         "{last_ns} vs {end_ns}"
     );
+
+    // `decode` reads the recording's radio channel: the run's frames, verified with the
+    // simulation's key (from its seed), each with its time and sender.
+    let key: String = hil_sim::world::sim_key_bytes(3)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .arg("decode")
+        .arg(&recording)
+        .env("SWEEPER_FLEET_KEY", key)
+        .env_remove("SWEEPER_KEY_FILE")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let verified = lines.iter().filter(|l| l["verified"] == true).count();
+    let of = |message: &str, sender: &str| {
+        lines
+            .iter()
+            .filter(|l| l["message"] == message && l["sender"] == sender)
+            .count()
+    };
+    println!("decode: {} frames, {verified} verified", lines.len());
+    assert_eq!(count["/radio"].0, "RadioBytes");
+    assert!(
+        lines.len() as u64 >= count["/radio"].1,
+        "every transmission holds a frame"
+    );
+    assert!(
+        verified * 100 >= lines.len() * 95,
+        "{verified} of {}",
+        lines.len()
+    );
+    assert!(of("LeaderState", "base") > 500 && of("Telemetry", "robot:1") > 500);
+    assert!(lines.iter().all(|l| l["t_s"].as_f64().is_some()));
 }
 
 #[test]

@@ -1,5 +1,7 @@
 //! `basestation decode [FILE]`: a captured byte stream (file or stdin) in, one JSON line
-//! per frame out: the decoded fields, or why the frame was rejected. Never panics.
+//! per frame out: the decoded fields, or why the frame was rejected. Never panics. An MCAP
+//! recording of a run (`sim --mcap`) is read too: the frames of its `/radio` channel, each
+//! with its time and sender.
 //!
 //! With the fleet key (`--key-file` / `SWEEPER_FLEET_KEY`), handshake frames are verified
 //! and the sessions they announce are learnt, so that later frames of those senders are
@@ -90,8 +92,67 @@ fn decode_one(
     }
 }
 
+/// The first bytes of an MCAP file.
+const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// The frames of a recording's radio channel, one JSON line each.
+fn decode_recording(bytes: &[u8], key: Option<&MasterKey>) -> anyhow::Result<()> {
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let mut decoders: HashMap<String, FrameDecoder> = HashMap::new();
+    let mut sessions = HashMap::new();
+    let (mut frames, mut rejected) = (0u64, 0u64);
+    let messages = mcap::MessageStream::new(bytes).context("not a readable MCAP file")?;
+    for message in messages {
+        let message = message.context("a damaged MCAP record")?;
+        if message.channel.topic != hil_sim::recording::RADIO_TOPIC {
+            continue;
+        }
+        let sent: Value = serde_json::from_slice(&message.data).context("a radio message")?;
+        let (Some(from), Some(bytes)) = (
+            sent["from"].as_str(),
+            sent["hex"].as_str().and_then(|h| hex::decode(h).ok()),
+        ) else {
+            anyhow::bail!("a radio message without `from` and `hex`");
+        };
+        let decoder = decoders.entry(from.to_string()).or_default();
+        for b in bytes {
+            let Some(result) = decoder.push(b) else {
+                continue;
+            };
+            let mut line = match result {
+                Ok(raw) => decode_one(raw, key, &mut sessions),
+                Err(reason) => json!({"ok": false, "reject": reason.name()}),
+            };
+            line["t_s"] = json!(message.log_time as f64 / 1e9);
+            line["sender"] = json!(from);
+            frames += 1;
+            if line["ok"] == json!(false) {
+                rejected += 1;
+            }
+            if writeln!(out, "{line}").is_err() {
+                return Ok(());
+            }
+        }
+    }
+    out.flush().ok();
+    eprintln!("{frames} frames, {rejected} rejected");
+    Ok(())
+}
+
 pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
     let key = args.key.load()?;
+    if let Some(path) = args.file.as_ref().filter(|p| p.as_os_str() != "-") {
+        let mut head = [0u8; 8];
+        let is_mcap = std::fs::File::open(path)
+            .and_then(|mut f| f.read_exact(&mut head))
+            .is_ok()
+            && head == MCAP_MAGIC;
+        if is_mcap {
+            let bytes =
+                std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+            return decode_recording(&bytes, key.as_ref());
+        }
+    }
     let mut input: Box<dyn Read> = match &args.file {
         Some(p) if p.as_os_str() != "-" => Box::new(
             std::fs::File::open(p).with_context(|| format!("cannot open {}", p.display()))?,
