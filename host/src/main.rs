@@ -22,7 +22,7 @@ enum Command {
     Run(cli::run::RunArgs),
     /// Validate a scenario or site file and print a summary.
     Check(cli::check::CheckArgs),
-    /// Decode a captured byte stream: one JSON line per frame.
+    /// Decode a captured byte stream or a recording's radio channel: one JSON line per frame.
     Decode(cli::decode::DecodeArgs),
     /// Simulate the fleet (software in the loop) and report against the paper.
     Sim(cli::sim::SimArgs),

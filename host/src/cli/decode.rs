@@ -20,7 +20,8 @@ use serde_json::{json, Value};
 
 #[derive(Args, Debug)]
 pub struct DecodeArgs {
-    /// The capture; standard input when absent or `-`.
+    /// The capture (raw bytes) or an MCAP recording (`sim --mcap`); standard input when
+    /// absent or `-`.
     pub file: Option<PathBuf>,
     #[command(flatten)]
     pub key: super::KeyArgs,
