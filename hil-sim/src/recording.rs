@@ -15,7 +15,7 @@ use foxglove::messages::{
     line_primitive, log, ArrowPrimitive, Color, CylinderPrimitive, LinePrimitive, Log, Point3,
     Pose, PoseInFrame, Quaternion, SceneEntity, SceneUpdate, SpherePrimitive, Timestamp, Vector3,
 };
-use foxglove::{Context, McapWriter, PartialMetadata, Schema};
+use foxglove::{Channel, Context, McapWriter, PartialMetadata, RawChannel, Schema};
 
 use crate::report::Report;
 use crate::world::World;
@@ -41,6 +41,57 @@ struct RobotState {
 /// delimiters).
 pub const RADIO_TOPIC: &str = "/radio";
 const RADIO_SCHEMA: &str = r#"{"type":"object","properties":{"from":{"type":"string"},"hex":{"type":"string"}},"required":["from","hex"]}"#;
+
+/// The base station's events, as log messages.
+pub const EVENTS_TOPIC: &str = "/events";
+
+/// The radio channel (raw JSON messages) on `ctx`.
+pub fn radio_channel(ctx: &Arc<Context>) -> Result<Arc<RawChannel>, String> {
+    ctx.channel_builder(RADIO_TOPIC)
+        .message_encoding("json")
+        .schema(Schema::new(
+            "RadioBytes",
+            "jsonschema",
+            RADIO_SCHEMA.as_bytes(),
+        ))
+        .build_raw()
+        .map_err(|e| format!("the radio channel: {e}"))
+}
+
+/// Logs what `from` put on the air at `t_ns`.
+pub fn log_radio(channel: &RawChannel, from: &str, bytes: &[u8], t_ns: u64) {
+    let message = serde_json::json!({ "from": from, "hex": hex(bytes) }).to_string();
+    channel.log_with_meta(
+        message.as_bytes(),
+        PartialMetadata {
+            log_time: Some(t_ns),
+        },
+    );
+}
+
+/// The events channel on `ctx`.
+pub fn events_channel(ctx: &Arc<Context>) -> Channel<Log> {
+    ctx.channel_builder(EVENTS_TOPIC).build::<Log>()
+}
+
+/// Logs one station event (its report name, and its robot if any) at `t_ns`.
+pub fn log_event(channel: &Channel<Log>, event: &str, robot: Option<u16>, t_ns: u64) {
+    let message = match robot {
+        Some(id) => format!("{event} (robot {id})"),
+        None => event.to_string(),
+    };
+    let t_s = t_ns as f64 / 1e9;
+    channel.log_with_time(
+        &Log {
+            timestamp: stamp(t_s),
+            level: log::Level::Info as i32,
+            message,
+            name: "base station".into(),
+            ..Default::default()
+        },
+        t_ns,
+    );
+}
 
 /// Messages written per topic.
 pub type Counts = BTreeMap<String, u64>;
@@ -245,47 +296,19 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
         count("/robots");
     }
 
-    let events = ctx.channel_builder("/events").build::<Log>();
+    let events = events_channel(&ctx);
     for e in &report.station_events {
-        let message = match e.robot {
-            Some(id) => format!("{} (robot {id})", e.event),
-            None => e.event.clone(),
-        };
-        events.log_with_time(
-            &Log {
-                timestamp: stamp(e.at_s),
-                level: log::Level::Info as i32,
-                message,
-                name: "base station".into(),
-                ..Default::default()
-            },
-            nanos(e.at_s),
-        );
-        count("/events");
+        log_event(&events, &e.event, e.robot, nanos(e.at_s));
+        count(EVENTS_TOPIC);
     }
-    let radio = ctx
-        .channel_builder(RADIO_TOPIC)
-        .message_encoding("json")
-        .schema(Schema::new(
-            "RadioBytes",
-            "jsonschema",
-            RADIO_SCHEMA.as_bytes(),
-        ))
-        .build_raw()
-        .map_err(|e| format!("the radio channel: {e}"))?;
+    let radio = radio_channel(&ctx)?;
     for (t_us, from, bytes) in &world.transmitted {
         let from = match *from {
             0 => "base".to_string(),
             n if n <= world.robots.len() => format!("robot:{}", world.robots[n - 1].id),
             _ => "attacker".to_string(),
         };
-        let message = serde_json::json!({ "from": from, "hex": hex(bytes) }).to_string();
-        radio.log_with_meta(
-            message.as_bytes(),
-            PartialMetadata {
-                log_time: Some(t_us * 1000),
-            },
-        );
+        log_radio(&radio, &from, bytes, t_us * 1000);
         count(RADIO_TOPIC);
     }
     mcap.close()

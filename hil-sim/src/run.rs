@@ -57,33 +57,7 @@ pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, Worl
         .events()
         .iter()
         .map(|e| {
-            use base_station::station::StationEvent as E;
-            let (at_ms, event, robot) = match e {
-                E::Linked { robot, at_ms } => (*at_ms, "linked".to_string(), Some(*robot)),
-                E::Transformation { to, at_ms } => {
-                    (*at_ms, format!("formation_to_{to:?}").to_lowercase(), None)
-                }
-                E::LeaderLost { at_ms } => (*at_ms, "leader_lost".to_string(), Some(leader)),
-                E::LeaderBack { at_ms } => (*at_ms, "leader_back".to_string(), Some(leader)),
-                E::Escape { at_ms } => (*at_ms, "local_minimum_escape".to_string(), None),
-                E::Replanned { at_ms } => (*at_ms, "replanned".to_string(), None),
-                E::NoRoute { at_ms, .. } => (*at_ms, "no_route".to_string(), None),
-                E::Arrived { at_ms } => (*at_ms, "goal_reached".to_string(), None),
-                E::FleetReady { at_ms } => (*at_ms, "fleet_ready".to_string(), None),
-                E::RobotFault {
-                    robot,
-                    fault,
-                    at_ms,
-                    halts,
-                } => (
-                    *at_ms,
-                    format!(
-                        "robot_fault:{fault}{}",
-                        if *halts { ":fleet_halted" } else { "" }
-                    ),
-                    Some(*robot),
-                ),
-            };
+            let (at_ms, event, robot) = e.describe(leader);
             StationEventReport {
                 at_s: epoch + at_ms as f64 / 1000.0,
                 event,

@@ -233,6 +233,9 @@ fn run_over_udp_challenges_every_robot() {
     sock.set_read_timeout(Some(std::time::Duration::from_secs(5)))
         .unwrap();
     let addr = sock.local_addr().unwrap().to_string();
+    let dir = std::env::temp_dir().join(format!("basestation-run-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let recording = dir.join("run.mcap");
     let mut child = Command::new(env!("CARGO_BIN_EXE_basestation"))
         .args([
             "run",
@@ -243,6 +246,8 @@ fn run_over_udp_challenges_every_robot() {
             "127.0.0.1:0",
             "--duration",
             "1",
+            "--mcap",
+            recording.to_str().unwrap(),
         ])
         .env("SWEEPER_FLEET_KEY", "33".repeat(32))
         .stdout(Stdio::null())
@@ -266,6 +271,28 @@ fn run_over_udp_challenges_every_robot() {
     }
     assert!(child.wait().unwrap().success());
     assert_eq!(hellos.len(), 3);
+
+    // The run's recording: `decode` finds the challenges to every robot in its radio
+    // channel, sent by the base station, verified with the key.
+    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .arg("decode")
+        .arg(&recording)
+        .env("SWEEPER_FLEET_KEY", "33".repeat(32))
+        .env_remove("SWEEPER_KEY_FILE")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let recorded: std::collections::BTreeSet<String> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|l| l["message"] == "Hello" && l["sender"] == "base" && l["verified"] == true)
+        .map(|l| l["to"].to_string())
+        .collect();
+    assert_eq!(recorded.len(), 3, "{recorded:?}");
 }
 
 #[test]

@@ -101,6 +101,40 @@ pub enum StationEvent {
     },
 }
 
+impl StationEvent {
+    /// When (station clock, ms), what (a snake_case name, as in reports and recordings)
+    /// and which robot; `leader`: the leader's id, for the events about it.
+    pub fn describe(&self, leader: u16) -> (u32, String, Option<u16>) {
+        use StationEvent as E;
+        match self {
+            E::Linked { robot, at_ms } => (*at_ms, "linked".into(), Some(*robot)),
+            E::Transformation { to, at_ms } => {
+                (*at_ms, format!("formation_to_{to:?}").to_lowercase(), None)
+            }
+            E::LeaderLost { at_ms } => (*at_ms, "leader_lost".into(), Some(leader)),
+            E::LeaderBack { at_ms } => (*at_ms, "leader_back".into(), Some(leader)),
+            E::Escape { at_ms } => (*at_ms, "local_minimum_escape".into(), None),
+            E::Replanned { at_ms } => (*at_ms, "replanned".into(), None),
+            E::NoRoute { at_ms, .. } => (*at_ms, "no_route".into(), None),
+            E::Arrived { at_ms } => (*at_ms, "goal_reached".into(), None),
+            E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
+            E::RobotFault {
+                robot,
+                fault,
+                at_ms,
+                halts,
+            } => (
+                *at_ms,
+                format!(
+                    "robot_fault:{fault}{}",
+                    if *halts { ":fleet_halted" } else { "" }
+                ),
+                Some(*robot),
+            ),
+        }
+    }
+}
+
 /// Fault flags the station reports, with their names and whether they halt the fleet.
 const REPORTED_FAULTS: [(u16, &str, bool); 3] = [
     (faults::WHEEL_STALL_LEFT, "wheel_stall_left", true),

@@ -2,6 +2,7 @@
 
 pub mod check;
 pub mod decode;
+pub mod record;
 pub mod robot_config;
 pub mod run;
 pub mod sim;

@@ -32,6 +32,9 @@ pub struct RunArgs {
     /// Stop after this many seconds (default: until the goal is reached or Ctrl-C).
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub mcap: Option<std::path::PathBuf>,
     #[command(flatten)]
     pub key: super::KeyArgs,
 }
@@ -68,6 +71,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         nonce_base,
     );
 
+    let mut recording = match &args.mcap {
+        Some(path) => Some(super::record::LiveRecording::create(path, &station)?),
+        None => None,
+    };
+
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing Ctrl-C")?;
@@ -92,12 +100,20 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             let n = transport.recv(&mut buf, left)?;
             if n > 0 {
                 station.receive(&buf[..n], start.elapsed().as_millis() as u32);
+                if let Some(r) = &recording {
+                    r.radio("air", &buf[..n]);
+                }
             }
         }
         next += period;
         let now_ms = start.elapsed().as_millis() as u32;
         station.step(now_ms);
-        transport.send(&station.take_outbox())?;
+        let out = station.take_outbox();
+        transport.send(&out)?;
+        if let Some(r) = recording.as_mut() {
+            r.radio("base", &out);
+            r.station(&station);
+        }
         if now_ms / 1000 != last_report {
             last_report = now_ms / 1000;
             let stats = station.link().stats();
@@ -139,6 +155,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     }
     // Leave the fleet standing.
     station.broadcast_stop(start.elapsed().as_millis() as u32);
-    transport.send(&station.take_outbox())?;
+    let out = station.take_outbox();
+    transport.send(&out)?;
+    if let Some(r) = recording {
+        r.radio("base", &out);
+        r.close()?;
+    }
     Ok(())
 }

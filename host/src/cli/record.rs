@@ -1,0 +1,124 @@
+//! `run --mcap FILE`: the run recorded live as MCAP (the same channels as a simulation's
+//! recording where the station knows them): the radio bytes both ways, the base station's
+//! events, each robot's pose as its telemetry reports it. Timestamps: the wall clock.
+
+use std::collections::BTreeMap;
+use std::io::BufWriter;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::SystemTime;
+
+use anyhow::Context as _;
+use base_station::station::BaseStation;
+use foxglove::messages::{Log, PoseInFrame, Quaternion, Timestamp, Vector3};
+use foxglove::{Channel, Context, McapWriter, McapWriterHandle, RawChannel};
+use hil_sim::recording::{events_channel, log_event, log_radio, radio_channel};
+
+pub struct LiveRecording {
+    _ctx: Arc<Context>,
+    writer: McapWriterHandle<BufWriter<std::fs::File>>,
+    radio: Arc<RawChannel>,
+    events: Channel<Log>,
+    poses: BTreeMap<u16, (Channel<PoseInFrame>, u32)>,
+    events_logged: usize,
+}
+
+/// Now, ns since the Unix epoch.
+fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+impl LiveRecording {
+    pub fn create(path: &Path, station: &BaseStation) -> anyhow::Result<Self> {
+        let ctx = Context::new();
+        let file = std::fs::File::create(path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        let writer = McapWriter::new()
+            .context(&ctx)
+            .create(BufWriter::new(file))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let radio = radio_channel(&ctx).map_err(anyhow::Error::msg)?;
+        let events = events_channel(&ctx);
+        let poses = station
+            .robots()
+            .keys()
+            .map(|id| {
+                let ch = ctx
+                    .channel_builder(format!("/robot_{id}/pose"))
+                    .build::<PoseInFrame>();
+                (*id, (ch, u32::MAX))
+            })
+            .collect();
+        Ok(Self {
+            _ctx: ctx,
+            writer,
+            radio,
+            events,
+            poses,
+            events_logged: 0,
+        })
+    }
+
+    /// Bytes the station sent (`from` `base`) or received (`air`: any sender).
+    pub fn radio(&self, from: &str, bytes: &[u8]) {
+        if !bytes.is_empty() {
+            log_radio(&self.radio, from, bytes, now_ns());
+        }
+    }
+
+    /// What the station learnt since the last call: new events, new telemetry poses.
+    pub fn station(&mut self, station: &BaseStation) {
+        let t = now_ns();
+        let leader = station.config().leader;
+        for e in &station.events()[self.events_logged..] {
+            let (_, name, robot) = e.describe(leader);
+            log_event(&self.events, &name, robot, t);
+        }
+        self.events_logged = station.events().len();
+        for (id, status) in station.robots() {
+            let (Some(telemetry), Some((channel, seen))) =
+                (status.telemetry, self.poses.get_mut(id))
+            else {
+                continue;
+            };
+            if *seen == status.received_ms {
+                continue;
+            }
+            *seen = status.received_ms;
+            let (x, y, heading) = telemetry.pose.to_si();
+            let h = 0.5 * heading as f64;
+            channel.log_with_time(
+                &PoseInFrame {
+                    timestamp: Some(Timestamp::new(
+                        (t / 1_000_000_000) as u32,
+                        (t % 1_000_000_000) as u32,
+                    )),
+                    frame_id: "site".into(),
+                    pose: Some(foxglove::messages::Pose {
+                        position: Some(Vector3 {
+                            x: x as f64,
+                            y: y as f64,
+                            z: 0.0,
+                        }),
+                        orientation: Some(Quaternion {
+                            x: 0.0,
+                            y: 0.0,
+                            z: h.sin(),
+                            w: h.cos(),
+                        }),
+                    }),
+                },
+                t,
+            );
+        }
+    }
+
+    pub fn close(self) -> anyhow::Result<()> {
+        self.writer
+            .close()
+            .map(|_| ())
+            .context("cannot finish the recording")
+    }
+}
