@@ -12,11 +12,20 @@ use crate::world::{SimOptions, World};
 
 /// Runs a scenario; returns the report and the finished world (for the figure).
 pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, World), BrainError> {
+    simulate_with(scenario, options, |_, _| {})
+}
+
+/// [`simulate`], calling `progress(t_s, duration_s)` as the simulated time moves.
+pub fn simulate_with(
+    scenario: Scenario,
+    options: SimOptions,
+    progress: impl FnMut(f64, f64),
+) -> Result<(Report, World), BrainError> {
     let wall = Instant::now();
     let firmware = options.firmware.name();
     let seed = options.seed;
     let mut world = World::new(scenario, options)?;
-    world.run()?;
+    world.run_with(progress)?;
     let wall_time_s = wall.elapsed().as_secs_f64();
 
     // Rejects by reason from every receiver: the base station and each robot (a firmware

@@ -174,6 +174,9 @@ fn sim_takes_faults_on_the_command_line() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // The progress bar draws on a terminal only: nothing of it in a pipe.
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains('\r') && !err.contains("simulating"), "{err}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r["goal_reached"], false);

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use hil_sim::report::Report;
-use hil_sim::run::simulate;
+use hil_sim::run::simulate_with;
 use hil_sim::world::{Firmware, SimOptions};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -82,7 +82,22 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
     options.firmware = firmware;
     options.realtime = args.realtime;
-    let (report, world) = simulate(scenario, options).context("the simulation failed")?;
+    // Simulated time on a terminal (stderr); nothing when stderr is not one (CI, pipes).
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} simulating {msg} [{bar:30}] {elapsed}")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    let result = simulate_with(scenario, options, |t, end| {
+        let permille = (t / end.max(1e-9) * 1000.0) as u64;
+        if permille != bar.position() {
+            bar.set_position(permille);
+            bar.set_message(format!("{t:.0} s"));
+        }
+    });
+    bar.finish_and_clear();
+    let (report, world) = result.context("the simulation failed")?;
 
     let report_path = args
         .report
