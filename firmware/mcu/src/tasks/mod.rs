@@ -35,7 +35,7 @@ pub async fn radio_send(bytes: &[u8]) {
     }
 }
 
-/// True when everything queued has been written to the UART (the lockstep link waits
+/// True when everything queued has been written to the radio (the lockstep link waits
 /// for it).
 #[cfg(feature = "board-qemu")]
 pub fn radio_idle() -> bool {
