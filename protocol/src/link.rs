@@ -344,16 +344,23 @@ impl<const PEERS: usize> Link<PEERS> {
             return Ok(Event::Ignored);
         }
         let i = self.index(header.from).ok_or(Reject::UnknownSession)?;
-        let result = self.accept_from(i, raw, now_ms);
+        let result = self.accept_from(i, raw, header.to, now_ms);
         if let Err(reason) = result {
             self.peers[i].rejects.count(reason);
         }
         result
     }
 
-    fn accept_from(&mut self, i: usize, raw: &[u8], now_ms: u32) -> Result<Event, Reject> {
+    /// `to`: the frame's destination, from its (not yet verified) header: it picks the key.
+    fn accept_from(
+        &mut self,
+        i: usize,
+        raw: &[u8],
+        to: Address,
+        now_ms: u32,
+    ) -> Result<Event, Reject> {
         let session = self.peers[i].session;
-        let key = match frame::peek_header(raw)?.to {
+        let key = match to {
             Address::Broadcast => &self.broadcast_key,
             _ => &self.peers[i].key,
         };

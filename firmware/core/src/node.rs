@@ -90,11 +90,12 @@ impl RobotNode {
             match self.link.receive(frame, now_ms) {
                 Ok(Event::Message { header, message }) => {
                     let valid_at = self.local_time(header.time_ms);
-                    if self.is_stale(&message, valid_at, now_ms) {
+                    let sent = self.sent_at(valid_at);
+                    if self.is_stale(&message, sent, now_ms) {
                         self.link.count_reject(Reject::Stale);
                         continue;
                     }
-                    self.handle(message, valid_at, now_ms);
+                    self.handle(message, valid_at, sent, now_ms);
                 }
                 Ok(Event::Challenged { from, nonce }) => {
                     let mut buf = [0u8; MAX_WIRE];
@@ -121,15 +122,16 @@ impl RobotNode {
         valid_at.wrapping_add(half_rtt)
     }
 
-    /// A command already older than its timeout when it arrives.
-    fn is_stale(&self, message: &Message, valid_at: u32, now_ms: u32) -> bool {
+    /// A command already older than its timeout when it arrives (`sent`: see
+    /// [`RobotNode::sent_at`]).
+    fn is_stale(&self, message: &Message, sent: u32, now_ms: u32) -> bool {
         let timeouts = &self.controller.config().timeouts;
         let timeout = match message {
             Message::LeaderState(_) => timeouts.leader_state_ms,
             Message::VelocityCommand(_) => timeouts.command_ms,
             _ => return false,
         };
-        now_ms.wrapping_sub(self.sent_at(valid_at)) as i32 > timeout as i32
+        now_ms.wrapping_sub(sent) as i32 > timeout as i32
     }
 
     /// The base station's clock converted to ours (the handshake measured the offset).
@@ -142,8 +144,7 @@ impl RobotNode {
         base_ms.wrapping_sub(offset as u32)
     }
 
-    fn handle(&mut self, message: Message, valid_at: u32, now_ms: u32) {
-        let sent = self.sent_at(valid_at);
+    fn handle(&mut self, message: Message, valid_at: u32, sent: u32, now_ms: u32) {
         let c = &mut self.controller;
         // Malformed values are refused by the controller and flagged in telemetry.
         let _ = match message {
