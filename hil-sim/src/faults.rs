@@ -2,6 +2,7 @@
 //! simulated time reaches them. Radio faults change the radio; robot faults change a body
 //! or a brain; attackers are an extra transmitter on the same radio.
 
+use std::borrow::Cow;
 use std::collections::VecDeque;
 
 use base_station::scenario::{FaultKind, FaultSpec};
@@ -40,6 +41,15 @@ fn decoded_header(wire: &[u8]) -> Option<protocol::Header> {
         }
     }
     None
+}
+
+/// Moves the frames of `queue` (time recorded, bytes) that are `delay_s` old by `t_us`
+/// into `out`, oldest first.
+fn release(queue: &mut VecDeque<(u64, Vec<u8>)>, delay_s: f64, t_us: u64, out: &mut Vec<u8>) {
+    let delay_us = (delay_s * 1e6) as u64;
+    while let Some((_, frame)) = queue.pop_front_if(|(at, _)| *at + delay_us <= t_us) {
+        out.extend_from_slice(&frame);
+    }
 }
 
 /// A controller that died: no frames, motors off.
@@ -206,7 +216,7 @@ impl Injector {
 
     /// Records what a node sent (`from` 0: the base station), for the replayers; returns
     /// what reaches the air (a `Welcome` being held back does not).
-    pub fn overheard(&mut self, from: usize, t_us: u64, bytes: &[u8]) -> Vec<u8> {
+    pub fn overheard<'a>(&mut self, from: usize, t_us: u64, bytes: &'a [u8]) -> Cow<'a, [u8]> {
         let t_s = t_us as f64 / 1e6;
         let replaying = from == 0
             && self
@@ -216,6 +226,9 @@ impl Injector {
         let collecting_hellos =
             from != 0 && self.faults.iter().any(|f| f.kind == FaultKind::HelloReplay);
         let holding = from == 0 && self.active(FaultKind::WelcomeHoldback, t_s).is_some();
+        if !(replaying || collecting_hellos || holding) {
+            return Cow::Borrowed(bytes);
+        }
         let mut on_air = Vec::with_capacity(bytes.len());
         for frame in bytes.split_inclusive(|b| *b == 0) {
             if replaying {
@@ -239,7 +252,7 @@ impl Injector {
             }
             on_air.extend_from_slice(frame);
         }
-        on_air
+        Cow::Owned(on_air)
     }
 
     /// The attacker's transmissions during one step of `step_s` ending at `t_us`.
@@ -287,32 +300,17 @@ impl Injector {
                 out.extend_from_slice(&self.hellos[self.next_hello].1);
             }
         }
-        if let Some(f) = self
+        let delay = |f: &FaultSpec| f.value.unwrap_or(0.0);
+        // Held frames go out `value` s late, also after the attack window closed.
+        let holdback = self
             .faults
             .iter()
-            .find(|f| f.kind == FaultKind::WelcomeHoldback)
-        {
-            // Held frames go out `value` s late, also after the attack window closed.
-            let delay_us = (f.value.unwrap_or(0.0) * 1e6) as u64;
-            while self
-                .held
-                .front()
-                .is_some_and(|(at, _)| at + delay_us <= t_us)
-            {
-                let (_, frame) = self.held.pop_front().expect("peeked");
-                out.extend_from_slice(&frame);
-            }
+            .find(|f| f.kind == FaultKind::WelcomeHoldback);
+        if let Some(d) = holdback.map(delay) {
+            release(&mut self.held, d, t_us, &mut out);
         }
-        if let Some(f) = self.active(FaultKind::ReplayAttacker, t_s) {
-            let delay_us = (f.value.unwrap_or(0.0) * 1e6) as u64;
-            while self
-                .recorded
-                .front()
-                .is_some_and(|(at, _)| at + delay_us <= t_us)
-            {
-                let (_, frame) = self.recorded.pop_front().expect("peeked");
-                out.extend_from_slice(&frame);
-            }
+        if let Some(d) = self.active(FaultKind::ReplayAttacker, t_s).map(delay) {
+            release(&mut self.recorded, d, t_us, &mut out);
         }
         out
     }

@@ -396,8 +396,7 @@ impl Brain for QemuBrain {
         }
         self.tx_read = done.radio_tx_bytes;
         self.rejects = done.rejects;
-        let bytes = tx[start..].to_vec();
-        self.scan_tx(&bytes);
+        self.scan_tx(&tx[start..]);
         if !done.duty.iter().all(|d| d.is_finite()) {
             return Err(self.failure("sent a non-finite motor duty"));
         }

@@ -21,7 +21,7 @@ use crate::report::Report;
 use crate::world::World;
 
 /// The frame every position is in: the site's metric frame.
-const FRAME: &str = "site";
+pub const FRAME: &str = "site";
 
 /// What a robot's state channel carries (plottable in Foxglove's Plot panel).
 #[derive(foxglove::Encode)]
@@ -60,7 +60,7 @@ pub fn radio_channel(ctx: &Arc<Context>) -> Result<Arc<RawChannel>, String> {
 
 /// Logs what `from` put on the air at `t_ns`.
 pub fn log_radio(channel: &RawChannel, from: &str, bytes: &[u8], t_ns: u64) {
-    let message = serde_json::json!({ "from": from, "hex": hex(bytes) }).to_string();
+    let message = serde_json::json!({ "from": from, "hex": hex::encode(bytes) }).to_string();
     channel.log_with_meta(
         message.as_bytes(),
         PartialMetadata {
@@ -80,10 +80,9 @@ pub fn log_event(channel: &Channel<Log>, event: &str, robot: Option<u16>, t_ns: 
         Some(id) => format!("{event} (robot {id})"),
         None => event.to_string(),
     };
-    let t_s = t_ns as f64 / 1e9;
     channel.log_with_time(
         &Log {
-            timestamp: stamp(t_s),
+            timestamp: stamp(t_ns),
             level: log::Level::Info as i32,
             message,
             name: "base station".into(),
@@ -96,18 +95,15 @@ pub fn log_event(channel: &Channel<Log>, event: &str, robot: Option<u16>, t_ns: 
 /// Messages written per topic.
 pub type Counts = BTreeMap<String, u64>;
 
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 fn nanos(t_s: f64) -> u64 {
     (t_s * 1e9).round() as u64
 }
 
-fn stamp(t_s: f64) -> Option<Timestamp> {
+/// A message's own timestamp, from nanoseconds.
+pub fn stamp(t_ns: u64) -> Option<Timestamp> {
     Some(Timestamp::new(
-        t_s.trunc() as u32,
-        (t_s.fract() * 1e9) as u32,
+        (t_ns / 1_000_000_000) as u32,
+        (t_ns % 1_000_000_000) as u32,
     ))
 }
 
@@ -115,7 +111,8 @@ fn point(x: f64, y: f64) -> Point3 {
     Point3 { x, y, z: 0.0 }
 }
 
-fn pose(x: f64, y: f64, z: f64, heading: f64) -> Option<Pose> {
+/// A pose in the plane at height `z`, turned by `heading` about the vertical.
+pub fn pose(x: f64, y: f64, z: f64, heading: f64) -> Option<Pose> {
     let h = 0.5 * heading;
     Some(Pose {
         position: Some(Vector3 { x, y, z }),
@@ -195,20 +192,16 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
     count("/map");
 
     let scene = ctx.channel_builder("/robots").build::<SceneUpdate>();
-    let poses: Vec<_> = world
+    // Per robot: its pose channel and its state channel.
+    let channels: Vec<_> = world
         .robots
         .iter()
         .map(|r| {
-            ctx.channel_builder(format!("/robot_{}/pose", r.id))
-                .build::<PoseInFrame>()
-        })
-        .collect();
-    let states: Vec<_> = world
-        .robots
-        .iter()
-        .map(|r| {
-            ctx.channel_builder(format!("/robot_{}/state", r.id))
-                .build::<RobotState>()
+            let topic = |what: &str| format!("/robot_{}/{what}", r.id);
+            (
+                ctx.channel_builder(topic("pose")).build::<PoseInFrame>(),
+                ctx.channel_builder(topic("state")).build::<RobotState>(),
+            )
         })
         .collect();
     let footprint = world
@@ -218,11 +211,7 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
     for s in &world.recorder.samples {
         let t = nanos(s.t);
         let mut entities = Vec::new();
-        for ((r, sample), (pose_ch, state_ch)) in world
-            .robots
-            .iter()
-            .zip(&s.robots)
-            .zip(poses.iter().zip(&states))
+        for ((r, sample), (pose_ch, state_ch)) in world.robots.iter().zip(&s.robots).zip(&channels)
         {
             let hue = if r.role == base_station::scenario::Role::Leader {
                 color(0.85, 0.3, 0.1)
@@ -230,7 +219,7 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
                 color(0.1, 0.45, 0.85)
             };
             let mut e = SceneEntity {
-                timestamp: stamp(s.t),
+                timestamp: stamp(t),
                 frame_id: FRAME.into(),
                 id: format!("robot_{}", r.id),
                 ..Default::default()
@@ -268,7 +257,7 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
             entities.push(e);
             pose_ch.log_with_time(
                 &PoseInFrame {
-                    timestamp: stamp(s.t),
+                    timestamp: stamp(t),
                     frame_id: FRAME.into(),
                     pose: pose(sample.x, sample.y, 0.0, sample.heading),
                 },

@@ -1,5 +1,7 @@
 //! The operator's program as a user runs it: bad scenario files, decode on garbage.
 
+mod common;
+
 use std::io::Write;
 use std::os::unix::fs::PermissionsExt;
 use std::process::{Command, Stdio};
@@ -274,21 +276,8 @@ fn run_over_udp_challenges_every_robot() {
 
     // The run's recording: `decode` finds the challenges to every robot in its radio
     // channel, sent by the base station, verified with the key.
-    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
-        .arg("decode")
-        .arg(&recording)
-        .env("SWEEPER_FLEET_KEY", "33".repeat(32))
-        .env_remove("SWEEPER_KEY_FILE")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let recorded: std::collections::BTreeSet<String> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+    let recorded: std::collections::BTreeSet<String> = common::decode(&recording, &"33".repeat(32))
+        .into_iter()
         .filter(|l| l["message"] == "Hello" && l["sender"] == "base" && l["verified"] == true)
         .map(|l| l["to"].to_string())
         .collect();

@@ -1,6 +1,8 @@
 //! README's first command, as a user runs it: `basestation sim` writes a report with the
 //! public keys, a figure and an MCAP recording (read back here with the `mcap` crate).
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::process::Command;
 
@@ -107,26 +109,7 @@ fn basestation_sim_writes_report_and_figure() {
 
     // `decode` reads the recording's radio channel: the run's frames, verified with the
     // simulation's key (from its seed), each with its time and sender.
-    let key: String = hil_sim::world::sim_key_bytes(3)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
-    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
-        .arg("decode")
-        .arg(&recording)
-        .env("SWEEPER_FLEET_KEY", key)
-        .env_remove("SWEEPER_KEY_FILE")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let lines = common::decode(&recording, &hex::encode(hil_sim::world::sim_key_bytes(3)));
     let verified = lines.iter().filter(|l| l["verified"] == true).count();
     let of = |message: &str, sender: &str| {
         lines

@@ -10,9 +10,9 @@ use std::time::SystemTime;
 
 use anyhow::Context as _;
 use base_station::station::BaseStation;
-use foxglove::messages::{Log, PoseInFrame, Quaternion, Timestamp, Vector3};
+use foxglove::messages::{Log, PoseInFrame};
 use foxglove::{Channel, Context, McapWriter, McapWriterHandle, RawChannel};
-use hil_sim::recording::{events_channel, log_event, log_radio, radio_channel};
+use hil_sim::recording::{events_channel, log_event, log_radio, pose, radio_channel, stamp, FRAME};
 
 pub struct LiveRecording {
     _ctx: Arc<Context>,
@@ -88,27 +88,11 @@ impl LiveRecording {
             }
             *seen = status.received_ms;
             let (x, y, heading) = telemetry.pose.to_si();
-            let h = 0.5 * heading as f64;
             channel.log_with_time(
                 &PoseInFrame {
-                    timestamp: Some(Timestamp::new(
-                        (t / 1_000_000_000) as u32,
-                        (t % 1_000_000_000) as u32,
-                    )),
-                    frame_id: "site".into(),
-                    pose: Some(foxglove::messages::Pose {
-                        position: Some(Vector3 {
-                            x: x as f64,
-                            y: y as f64,
-                            z: 0.0,
-                        }),
-                        orientation: Some(Quaternion {
-                            x: 0.0,
-                            y: 0.0,
-                            z: h.sin(),
-                            w: h.cos(),
-                        }),
-                    }),
+                    timestamp: stamp(t),
+                    frame_id: FRAME.into(),
+                    pose: pose(x as f64, y as f64, 0.0, heading as f64),
                 },
                 t,
             );
