@@ -11,6 +11,7 @@
 pub mod brain;
 pub mod faults;
 pub mod metrics;
+pub mod observer;
 pub mod plant;
 pub mod plot;
 pub mod qemu;

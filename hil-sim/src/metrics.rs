@@ -10,10 +10,12 @@
 
 use std::collections::HashSet;
 
+use base_station::formation::Target;
 use base_station::map::Map;
 use base_station::scenario::{Role, Scenario};
 use base_station::station::BaseStation;
 use glam::DVec2;
+use protocol::messages::RobotMode;
 use serde::Serialize;
 
 use crate::plant::Body;
@@ -24,6 +26,40 @@ pub trait Tracked {
     fn id(&self) -> u16;
     fn role(&self) -> Role;
     fn body(&self) -> &Body;
+}
+
+/// A slot's (L, φ) in the wide formation, and in the line.
+pub type SlotPair = ((f64, f64), (f64, f64));
+
+/// What the recorder needs from whoever runs the formation: the shape now and each
+/// slot, and what each robot last said of its mode. The base station in `sim`; in
+/// `robots`, whose station is another process, what was heard on the air.
+pub trait FleetView {
+    /// 0 = wide, 1 = line.
+    fn blend(&self) -> f64;
+    fn target(&self) -> Target;
+    /// Slot `k`'s (L, φ), wide and line.
+    fn slot(&self, k: usize) -> Option<SlotPair>;
+    fn mode(&self, robot: u16) -> Option<RobotMode>;
+}
+
+impl FleetView for BaseStation {
+    fn blend(&self) -> f64 {
+        self.formation().blend()
+    }
+    fn target(&self) -> Target {
+        self.formation().target()
+    }
+    fn slot(&self, k: usize) -> Option<SlotPair> {
+        let f = self.formation();
+        Some((*f.wide_slots().get(k)?, *f.line_slots().get(k)?))
+    }
+    fn mode(&self, robot: u16) -> Option<RobotMode> {
+        self.robots()
+            .get(&robot)
+            .and_then(|s| s.telemetry)
+            .map(|t| t.mode)
+    }
 }
 
 /// One robot at one sample.
@@ -109,8 +145,8 @@ pub struct Recorder {
 
 const OBSTACLE: usize = usize::MAX;
 
-fn mode_name(m: protocol::messages::RobotMode) -> &'static str {
-    use protocol::messages::RobotMode as M;
+fn mode_name(m: RobotMode) -> &'static str {
+    use RobotMode as M;
     match m {
         M::Idle => "idle",
         M::Joining => "joining",
@@ -153,7 +189,7 @@ impl Recorder {
         t_us: u64,
         robots: &[R],
         map: &Map,
-        station: &BaseStation,
+        view: &dyn FleetView,
     ) {
         let fp = self.footprint;
         let reach = self.r_det + fp;
@@ -193,7 +229,7 @@ impl Recorder {
         if !t_us.is_multiple_of(100_000) {
             return;
         }
-        self.sample(t_us, robots, leader, station, near);
+        self.sample(t_us, robots, leader, view, near);
     }
 
     fn sample<R: Tracked>(
@@ -201,11 +237,10 @@ impl Recorder {
         t_us: u64,
         robots: &[R],
         leader: Option<&Body>,
-        station: &BaseStation,
+        view: &dyn FleetView,
         near_obstacle: bool,
     ) {
-        let formation = station.formation();
-        let blend = formation.blend();
+        let blend = view.blend();
         // Slot k belongs to the follower with the k-th smallest id (the station's order).
         let mut ids: Vec<u16> = robots
             .iter()
@@ -217,13 +252,12 @@ impl Recorder {
             let l = leader?;
             let k = ids.binary_search(&id).ok()?;
             let pos = DVec2::new(l.x, l.y);
-            let (wl, wphi) = *formation.wide_slots().get(k)?;
+            let ((wl, wphi), (ll, _)) = view.slot(k)?;
             let a = l.heading + wphi;
             let wide = pos + DVec2::new(a.cos(), a.sin()) * wl;
             if blend <= 0.0 {
                 return Some(wide);
             }
-            let (ll, _) = *formation.line_slots().get(k)?;
             let line = self.path.behind(pos, l.heading, ll);
             Some(wide.lerp(line, blend.min(1.0)))
         };
@@ -238,11 +272,7 @@ impl Recorder {
                     let (cx, cy) = r.body().ahead(self.d);
                     (DVec2::new(cx, cy) - s).length()
                 });
-                let mode = station
-                    .robots()
-                    .get(&r.id())
-                    .and_then(|s| s.telemetry)
-                    .map(|t| mode_name(t.mode));
+                let mode = view.mode(r.id()).map(mode_name);
                 RobotSample {
                     x: r.body().x,
                     y: r.body().y,
@@ -255,11 +285,11 @@ impl Recorder {
                 }
             })
             .collect();
-        let shape = match (formation.target(), blend) {
-            (base_station::formation::Target::Line, b) if b >= 1.0 => "line",
-            (base_station::formation::Target::Line, _) => "to_line",
-            (base_station::formation::Target::Wide, b) if b <= 0.0 => "wide",
-            (base_station::formation::Target::Wide, _) => "to_wide",
+        let shape = match (view.target(), blend) {
+            (Target::Line, b) if b >= 1.0 => "line",
+            (Target::Line, _) => "to_line",
+            (Target::Wide, b) if b <= 0.0 => "wide",
+            (Target::Wide, _) => "to_wide",
         };
         self.samples.push(Sample {
             t: t_us as f64 / 1e6,

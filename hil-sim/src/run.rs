@@ -22,12 +22,15 @@ pub fn simulate_with(
     progress: impl FnMut(f64, f64),
 ) -> Result<(Report, World), BrainError> {
     let wall = Instant::now();
-    let firmware = options.firmware.name();
-    let seed = options.seed;
     let mut world = World::new(scenario, options)?;
     world.run_with(progress)?;
-    let wall_time_s = wall.elapsed().as_secs_f64();
+    let report = report_of(&world, wall.elapsed().as_secs_f64());
+    Ok((report, world))
+}
 
+/// The report of a world run so far. With an external base station, shape changes are
+/// the ones heard on the air and the station's events are not known here.
+pub fn report_of(world: &World, wall_time_s: f64) -> Report {
     // Rejects by reason from every receiver: the base station and each robot (a firmware
     // robot reports its counts over the lockstep link).
     let mut rejects = world.station.rejects();
@@ -44,7 +47,10 @@ pub fn simulate_with(
     let s = &world.scenario;
     let transformations = report::transformations(
         &world.recorder,
-        world.station.formation().transformations(),
+        match &world.observer {
+            Some(observer) => observer.transformations(),
+            None => world.station.formation().transformations(),
+        },
         s.wide_name(),
         s.formation_spec().transition_duration(),
     );
@@ -52,13 +58,16 @@ pub fn simulate_with(
     let facts = RunFacts {
         scenario: s,
         roles: &roles,
-        seed,
-        firmware,
+        seed: world.options.seed,
+        firmware: world.options.firmware.name(),
         sim_time_s: world.t_us as f64 / 1e6,
         wall_time_s,
         time_to_goal_s: world.goal_time_s(),
     };
     let mut report = report::build_report(&world.recorder, &facts, transformations, link);
+    if world.observer.is_some() {
+        return report;
+    }
     let leader = world.station.config().leader;
     let epoch = world.base_epoch_s();
     report.station_events = world
@@ -74,7 +83,7 @@ pub fn simulate_with(
             }
         })
         .collect();
-    Ok((report, world))
+    report
 }
 
 fn by_reason(counts: &RejectCounts) -> BTreeMap<String, u64> {

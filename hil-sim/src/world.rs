@@ -25,7 +25,8 @@ use rand_distr::{Distribution, Normal};
 
 use crate::brain::{Brain, BrainError, NativeBrain};
 use crate::faults::{Action, DeadBrain, Injector};
-use crate::metrics::{Recorder, Tracked};
+use crate::metrics::{FleetView, Recorder, Tracked};
+use crate::observer::AirObserver;
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
 use crate::scanner::Scanner;
@@ -48,11 +49,35 @@ impl Firmware {
     }
 }
 
+/// Who runs the base station.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BaseSide {
+    /// The real base station code, in the world, on the simulated clock.
+    Simulated,
+    /// Another process (`basestation run`): its bytes come in through
+    /// [`World::base_transmit`], what reaches it leaves through [`World::take_base_inbox`].
+    External,
+}
+
+/// How robots learn where they are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FixPath {
+    /// Each robot's own receiver hands its fixes to its controller.
+    Onboard,
+    /// Fixes are published (taken with [`World::take_published_fixes`]) for the base
+    /// station to forward over the radio, as a site's localization system would.
+    Published,
+}
+
 #[derive(Debug, Clone)]
 pub struct SimOptions {
     pub seed: u64,
     pub firmware: Firmware,
     pub realtime: bool,
+    pub base: BaseSide,
+    pub fixes: FixPath,
+    /// The fleet's key; the seed's simulation key when absent.
+    pub key: Option<std::sync::Arc<MasterKey>>,
     /// Keep running this long after the goal is reached (followers settle), s.
     pub settle_s: f64,
     /// A firmware brain that takes longer than this (wall clock) for a step has hung.
@@ -65,9 +90,21 @@ impl SimOptions {
             seed,
             firmware: Firmware::Native,
             realtime: false,
+            base: BaseSide::Simulated,
+            fixes: FixPath::Onboard,
+            key: None,
             settle_s: 5.0,
             step_timeout: crate::qemu::STEP_TIMEOUT,
         }
+    }
+}
+
+impl SimOptions {
+    /// The fleet key the robots (and a simulated base station) hold.
+    pub fn fleet_key(&self) -> std::sync::Arc<MasterKey> {
+        self.key
+            .clone()
+            .unwrap_or_else(|| std::sync::Arc::new(sim_key(self.seed)))
     }
 }
 
@@ -140,6 +177,7 @@ fn boot_brain(
     boot_count: u32,
 ) -> Result<Box<dyn Brain>, BrainError> {
     let entropy = boot_entropy(options.seed, id, boot_count);
+    let key = options.fleet_key();
     Ok(match options.firmware {
         Firmware::Native => {
             let identity = Identity {
@@ -151,7 +189,7 @@ fn boot_brain(
                 boot_count,
                 entropy,
             };
-            Box::new(NativeBrain::new(identity, &sim_key(options.seed), cfg))
+            Box::new(NativeBrain::new(identity, &key, cfg))
         }
         Firmware::Qemu => Box::new(crate::qemu::QemuBrain::spawn(
             elf,
@@ -160,8 +198,8 @@ fn boot_brain(
                 leader: role == Role::Leader,
                 boot_count,
                 entropy,
-                broadcast_key: sim_key(options.seed).broadcast_bytes(),
-                robot_key: sim_key(options.seed).robot_bytes(id),
+                broadcast_key: key.broadcast_bytes(),
+                robot_key: key.robot_bytes(id),
             },
             options.step_timeout,
         )?),
@@ -216,6 +254,15 @@ pub struct World {
     base_epoch_us: u64,
     robot_cfg: RobotConfig,
     elf: std::path::PathBuf,
+    /// With an external base station: what it said on the air, for the recorder.
+    pub observer: Option<AirObserver>,
+    /// With an external base station: bytes that reached it, not yet taken.
+    base_inbox: Vec<u8>,
+    /// Published fixes not yet taken: (robot, fix stamped with the world's clock, ms).
+    published_fixes: Vec<(u16, PoseFixSample)>,
+    /// The next route point the true leader has to pass (judging arrival without the
+    /// station's planner).
+    next_route_point: usize,
 }
 
 const PERIOD_US: u64 = 100_000;
@@ -243,7 +290,7 @@ fn ray_circle(o: DVec2, dir: DVec2, c: DVec2, r: f64) -> Option<f64> {
 impl World {
     pub fn new(scenario: Scenario, options: SimOptions) -> Result<Self, BrainError> {
         let mut master = ChaCha8Rng::seed_from_u64(options.seed);
-        let key = sim_key(options.seed);
+        let key = options.fleet_key();
         let station = BaseStation::new(
             StationConfig::from_scenario(&scenario),
             &key,
@@ -324,6 +371,10 @@ impl World {
             robot_cfg: cfg,
             elf,
             loc_rng: ChaCha8Rng::seed_from_u64(master.random()),
+            observer: (options.base == BaseSide::External).then(AirObserver::default),
+            base_inbox: Vec::new(),
+            published_fixes: Vec::new(),
+            next_route_point: 0,
             map,
             station,
             radio,
@@ -364,6 +415,9 @@ impl World {
         let bytes = &on_air[..];
         if !bytes.is_empty() {
             self.transmitted.push((self.t_us, from, bytes.to_vec()));
+            if let Some(observer) = &mut self.observer {
+                observer.overhear(from, bytes, t_s);
+            }
         }
         let silenced = self.injector.silenced(from, t_s);
         let params = *self.radio.params();
@@ -396,7 +450,7 @@ impl World {
                     let mut rng = ChaCha8Rng::seed_from_u64(self.options.seed ^ self.t_us);
                     self.station = BaseStation::new(
                         StationConfig::from_scenario(&self.scenario),
-                        &sim_key(self.options.seed),
+                        &self.options.fleet_key(),
                         rng.random(),
                         nonce_base(SIM_EPOCH_MS + self.t_us / 1000, rng.random()),
                     );
@@ -480,8 +534,11 @@ impl World {
 
         // Radio arrivals: the base station takes its bytes at once; each robot gets its
         // own at its next step (this one, if it is booted).
+        let external = self.options.base == BaseSide::External;
         for (to, bytes) in self.radio.arrivals(t) {
-            if to == 0 {
+            if to == 0 && external {
+                self.base_inbox.extend_from_slice(&bytes);
+            } else if to == 0 {
                 self.station.receive(&bytes, base_ms);
             } else {
                 self.robots[to - 1].inbox.extend_from_slice(&bytes);
@@ -508,12 +565,15 @@ impl World {
                     sigma: loc.sigma_m as f32,
                     time_ms: now_ms,
                 };
-                r.fixes.push_back((arrive, sample));
+                match self.options.fixes {
+                    FixPath::Onboard => r.fixes.push_back((arrive, sample)),
+                    FixPath::Published => self.published_fixes.push((r.id, sample)),
+                }
             }
         }
 
         // Base station at 10 Hz, with the leader's scan of the moment.
-        if t.is_multiple_of(PERIOD_US) {
+        if t.is_multiple_of(PERIOD_US) && !external {
             if let Some(at) = self.leader_position() {
                 let hits = self.scanner.scan(at, &self.map);
                 if !hits.is_empty() {
@@ -575,12 +635,56 @@ impl World {
         }
         self.t_us += step_us;
 
-        if self.goal_at_us.is_none() && self.station.planner().arrived() {
+        if self.goal_at_us.is_none() && self.arrived() {
             self.goal_at_us = Some(self.t_us);
         }
+        let view: &dyn FleetView = match &self.observer {
+            Some(observer) => observer,
+            None => &self.station,
+        };
         self.recorder
-            .observe(self.t_us, &self.robots, &self.map, &self.station);
+            .observe(self.t_us, &self.robots, &self.map, view);
         Ok(())
+    }
+
+    /// Whether the leader has arrived: the station's planner says so, or, with an
+    /// external station, the true leader has passed every route point in order.
+    fn arrived(&mut self) -> bool {
+        if self.observer.is_none() {
+            return self.station.planner().arrived();
+        }
+        let route = self.scenario.route.points();
+        let Some(at) = self.leader_position() else {
+            return false;
+        };
+        while let Some(p) = route.get(self.next_route_point) {
+            let last = self.next_route_point + 1 == route.len();
+            let tol = if last {
+                self.scenario.route.arrival_tolerance
+            } else {
+                self.scenario.route.waypoint_tolerance
+            };
+            if (*p - at).length() > tol {
+                break;
+            }
+            self.next_route_point += 1;
+        }
+        !route.is_empty() && self.next_route_point == route.len()
+    }
+
+    /// An external base station's bytes, put on the air now.
+    pub fn base_transmit(&mut self, bytes: &[u8]) {
+        self.transmit(0, bytes);
+    }
+
+    /// What reached an external base station over the air since the last call.
+    pub fn take_base_inbox(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.base_inbox)
+    }
+
+    /// Fixes published since the last call: (robot, fix stamped with the world's clock).
+    pub fn take_published_fixes(&mut self) -> Vec<(u16, PoseFixSample)> {
+        std::mem::take(&mut self.published_fixes)
     }
 
     /// Robots by grid cell, for neighbour queries.

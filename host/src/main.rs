@@ -26,6 +26,9 @@ enum Command {
     Decode(cli::decode::DecodeArgs),
     /// Simulate the fleet (software in the loop) and report against the paper.
     Sim(cli::sim::SimArgs),
+    /// Run a scenario's simulated robots in real time behind UDP or a pseudo-terminal, for
+    /// `run` to drive as it drives real robots.
+    Robots(cli::robots::RobotsArgs),
     /// Write a robot's configuration page (id, role, fleet key) for flashing.
     RobotConfig(cli::robot_config::RobotConfigArgs),
 }
@@ -48,6 +51,7 @@ fn main() -> std::process::ExitCode {
         Command::Check(args) => cli::check::run(args),
         Command::Decode(args) => cli::decode::run(args),
         Command::Sim(args) => cli::sim::run(args),
+        Command::Robots(args) => cli::robots::run(args),
         Command::RobotConfig(args) => cli::robot_config::run(args),
     };
     match result {

@@ -101,8 +101,11 @@ pub struct Peer {
     pub last_rx_ms: Option<u32>,
     /// Peer clock minus our clock, from the handshake's round trip.
     pub clock_offset_ms: Option<i32>,
-    /// The last handshake's round trip, ms: the offset is good to half of it.
+    /// The round trip of the handshake the offset came from, ms: the offset is good to
+    /// half of it.
     pub rtt_ms: Option<u32>,
+    /// Our clock when the offset was measured.
+    synced_ms: u32,
     pub accepted: u32,
     pub lost: u32,
     /// Rejected frames whose (unverified) header named this peer as sender.
@@ -124,6 +127,7 @@ impl Peer {
             last_rx_ms: None,
             clock_offset_ms: None,
             rtt_ms: None,
+            synced_ms: 0,
             accepted: 0,
             lost: 0,
             rejects: RejectCounts::default(),
@@ -410,10 +414,18 @@ impl<const PEERS: usize> Link<PEERS> {
                 peer.rx_unicast.last = Some(floor(peer.rx_unicast.last, header.seq));
                 peer.rx_broadcast.last = Some(floor(peer.rx_broadcast.last, welcome.broadcast_seq));
                 peer.last_rx_ms = Some(now_ms);
-                // NTP's estimate: the answer left halfway through the round trip.
-                let mid = sent_ms.wrapping_add(rtt / 2);
-                peer.clock_offset_ms = Some(header.time_ms.wrapping_sub(mid) as i32);
-                peer.rtt_ms = Some(rtt);
+                // NTP's estimate: the answer left halfway through the round trip. Within a
+                // session, a longer round trip than the estimate's is less exact: it
+                // replaces the estimate only as that ages (1 ms of round trip per 1.024 s,
+                // far above any crystal's drift), as NTP's clock filter prefers the
+                // shortest round trips.
+                let age = now_ms.wrapping_sub(peer.synced_ms) >> 10;
+                if !same || rtt <= peer.rtt_ms.unwrap_or(0).saturating_add(age) {
+                    let mid = sent_ms.wrapping_add(rtt / 2);
+                    peer.clock_offset_ms = Some(header.time_ms.wrapping_sub(mid) as i32);
+                    peer.rtt_ms = Some(rtt);
+                    peer.synced_ms = now_ms;
+                }
                 peer.accepted = peer.accepted.saturating_add(1);
                 Ok(if same {
                     Event::Synced { peer: header.from }

@@ -110,6 +110,8 @@ pub mod faults {
     pub const POSE_FIX_REJECTED: u16 = 1 << 6;
     pub const EMERGENCY_STOP: u16 = 1 << 7;
     pub const NOT_LINKED: u16 = 1 << 8;
+    /// No pose fix yet since boot: the telemetry's pose means nothing.
+    pub const NOT_LOCALIZED: u16 = 1 << 9;
 }
 
 /// Robot → base station, 10 Hz.

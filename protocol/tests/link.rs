@@ -309,7 +309,41 @@ fn a_linked_peer_is_resynchronised_periodically() {
             peer: Address::Base
         })]
     );
-    assert_eq!(r.peer(Address::Base).unwrap().rtt_ms, Some(60));
+    // A longer round trip (60 ms) than the link's (20 ms), 10 s later: the offset stays
+    // the more exact one (see `the_shortest_round_trip_sets_the_clock_offset`).
+    let peer = r.peer(Address::Base).unwrap();
+    assert_eq!((peer.rtt_ms, peer.clock_offset_ms), (Some(20), Some(0)));
+}
+
+/// Within a session the clock offset comes from the shortest round trip, as NTP's clock
+/// filter does; a longer one replaces it only as it ages (1 ms per second).
+#[test]
+fn the_shortest_round_trip_sets_the_clock_offset() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    robot_links_to(&mut r, &mut b, 0); // 20 ms round trip, offset 0
+    let mut resync = |r: &mut Robot, sent: u32, stamp: u32, back: u32| {
+        let mut buf = [0u8; MAX_WIRE];
+        let n = r.challenge(Address::Base, sent, &mut buf).unwrap();
+        let Ok(Event::Challenged { from, nonce }) = deliver(&mut b, &buf[..n], sent)[0] else {
+            panic!()
+        };
+        let n = b.answer(from, nonce, stamp, &mut buf).unwrap();
+        assert_eq!(
+            deliver(r, &buf[..n], back),
+            vec![Ok(Event::Synced {
+                peer: Address::Base
+            })]
+        );
+        let peer = r.peer(Address::Base).unwrap();
+        (peer.rtt_ms.unwrap(), peer.clock_offset_ms.unwrap())
+    };
+    // 200 ms round trip 20 s on: kept out (20 + 20 < 200).
+    assert_eq!(resync(&mut r, 20_000, 20_150, 20_200), (20, 0));
+    // 10 ms, shorter: taken at once (the stamp says our clock is 3 ms behind).
+    assert_eq!(resync(&mut r, 30_000, 30_008, 30_010), (10, 3));
+    // 200 ms again, 200 s after: the 10 ms estimate has aged past it.
+    assert_eq!(resync(&mut r, 230_000, 230_100, 230_200), (200, 0));
 }
 
 #[test]

@@ -220,16 +220,18 @@ impl RobotNode {
         let c = &self.controller;
         let pose = c
             .pose()
-            .and_then(|p| WirePose::from_si(p.x, p.y, p.heading).ok())
-            .unwrap_or_default();
+            .and_then(|p| WirePose::from_si(p.x, p.y, p.heading).ok());
         let w = c.wheel_speeds();
         let stats = self.link.stats();
         let mut fault_flags = c.faults();
+        if pose.is_none() {
+            fault_flags |= faults::NOT_LOCALIZED;
+        }
         if !self.link.peer(Address::Base).is_some_and(|p| p.is_linked()) {
             fault_flags |= faults::NOT_LINKED;
         }
         Telemetry {
-            pose,
+            pose: pose.unwrap_or_default(),
             wheel_mm_s: [
                 units::to_milli_i16(w.left).unwrap_or(0),
                 units::to_milli_i16(w.right).unwrap_or(0),

@@ -3,6 +3,17 @@
 use glam::DVec2;
 use serde::Serialize;
 
+/// An angle in (−π, π].
+pub fn wrap_angle(a: f64) -> f64 {
+    let t = std::f64::consts::TAU;
+    let w = a - t * ((a + std::f64::consts::PI) / t).floor();
+    if w <= -std::f64::consts::PI {
+        w + t
+    } else {
+        w
+    }
+}
+
 /// An obstacle on the map.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]

@@ -3,6 +3,7 @@
 
 pub mod formation;
 pub mod geometry;
+pub mod localization;
 pub mod map;
 pub mod perception;
 pub mod planner;

@@ -36,7 +36,15 @@ impl Transport for Serial {
         self.port.set_timeout(timeout).map_err(io::Error::other)?;
         match self.port.read(buf) {
             Ok(n) => Ok(n),
-            Err(e) if e.kind() == io::ErrorKind::TimedOut => Ok(0),
+            // A signal (Ctrl-C, SIGTERM) is the caller's to handle, not an error.
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::TimedOut | io::ErrorKind::Interrupted
+                ) =>
+            {
+                Ok(0)
+            }
             Err(e) => Err(e),
         }
     }
@@ -70,7 +78,14 @@ impl Transport for Udp {
     fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
         // One datagram per write; a datagram may hold several frames.
         for chunk in bytes.chunks(1200) {
-            self.socket.send_to(chunk, self.peer)?;
+            match self.socket.send_to(chunk, self.peer) {
+                // An earlier datagram found nobody listening (ICMP): the bridge may come
+                // back; not an error of this send.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {}
+                r => {
+                    r?;
+                }
+            }
         }
         Ok(())
     }
@@ -83,7 +98,11 @@ impl Transport for Udp {
             Err(e)
                 if matches!(
                     e.kind(),
-                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                    io::ErrorKind::WouldBlock
+                        | io::ErrorKind::TimedOut
+                        | io::ErrorKind::Interrupted
+                        // An earlier datagram's receiver was not there (ICMP): not ours.
+                        | io::ErrorKind::ConnectionRefused
                 ) =>
             {
                 Ok(0)

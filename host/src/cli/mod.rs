@@ -2,8 +2,10 @@
 
 pub mod check;
 pub mod decode;
+pub mod localization;
 pub mod record;
 pub mod robot_config;
+pub mod robots;
 pub mod run;
 pub mod sim;
 
@@ -54,6 +56,15 @@ pub fn load_scenario(arg: &str) -> anyhow::Result<Scenario> {
         );
     }
     Ok(scenario)
+}
+
+/// The wall clock, ms since the Unix epoch: for stamping real runs, never for simulated
+/// results.
+pub fn unix_ms() -> anyhow::Result<u64> {
+    Ok(std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_err(|_| anyhow::anyhow!("the system clock is before 1970: set it before a run"))?
+        .as_millis() as u64)
 }
 
 /// Where the fleet key comes from. Never from the binary: a real run without one fails.

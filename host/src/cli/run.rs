@@ -13,6 +13,7 @@ use anyhow::{bail, Context};
 use base_station::station::{BaseStation, StationConfig};
 use base_station::transport::{Serial, Transport, Udp};
 use clap::Args;
+use serde_json::json;
 
 #[derive(Args, Debug)]
 pub struct RunArgs {
@@ -32,6 +33,22 @@ pub struct RunArgs {
     /// Stop after this many seconds (default: until the goal is reached or Ctrl-C).
     #[arg(long)]
     pub duration: Option<f64>,
+    /// After the goal, keep the formation going this long (followers settle into their
+    /// slots) before stopping the fleet, s.
+    #[arg(long, default_value_t = 5.0)]
+    pub settle: f64,
+    /// Read the line feed of fixes (docs/operating.md#localization) from UDP datagrams to
+    /// this local address, and forward them to the robots.
+    #[arg(long, value_name = "ADDR")]
+    pub fix_feed: Option<SocketAddr>,
+    /// Read robot ID's GNSS receiver (NMEA 0183): `ID=udp:ADDR`, `ID=tcp:HOST:PORT` or
+    /// `ID=serial:PATH[@BAUD]`; repeat per robot. Needs `[localization] origin`.
+    #[arg(long, value_name = "ID=SOURCE")]
+    pub nmea: Vec<super::localization::NmeaArg>,
+    /// Write what the run did (station events, link and localization counts) here at the
+    /// end, as JSON (docs/operating.md#the-run-report).
+    #[arg(long, value_name = "FILE.json")]
+    pub report: Option<std::path::PathBuf>,
     /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<std::path::PathBuf>,
@@ -44,7 +61,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let Some(key) = args.key.load()? else {
         bail!("no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY (64 hex digits)");
     };
-    let mut transport: Box<dyn Transport> = match (&args.port, args.udp) {
+    let transport: Box<dyn Transport> = match (&args.port, args.udp) {
         (Some(port), _) => {
             Box::new(Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?)
         }
@@ -53,13 +70,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         (None, None) => unreachable!("clap requires --port or --udp"),
     };
+    let mut transport = Modem {
+        transport,
+        warned: None,
+    };
     let mut random = [0u8; 8];
     getrandom::fill(&mut random).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
     let session = u32::from_le_bytes(random[..4].try_into().expect("4 bytes"));
-    let start_ms = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_err(|_| anyhow::anyhow!("the system clock is before 1970: set it before a run"))?
-        .as_millis() as u64;
+    let start_ms = super::unix_ms()?;
     let nonce_base = base_station::station::nonce_base(
         start_ms,
         u32::from_le_bytes(random[4..8].try_into().expect("4 bytes")),
@@ -70,6 +88,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         session,
         nonce_base,
     );
+
+    let mut localization =
+        super::localization::Localization::open(args.fix_feed, &args.nmea, &scenario)?;
+    match &localization {
+        Some(_) => station.watch_fixes(0),
+        None => tracing::warn!(
+            "no localization source (--fix-feed, --nmea): the robots drive on odometry alone"
+        ),
+    }
 
     let mut recording = match &args.mcap {
         Some(path) => Some(super::record::LiveRecording::create(path, &station)?),
@@ -82,10 +109,13 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
 
     tracing::info!(scenario = %scenario.name, "base station running");
     let start = Instant::now();
+    // The station clock's zero on the Unix clock: fixes are stamped with the latter.
+    let start_unix_ms = super::unix_ms()?;
     let period = Duration::from_millis(100);
     let mut next = start;
     let mut buf = [0u8; 2048];
     let mut last_report = 0u32;
+    let mut arrived_ms = None;
     while !stop.load(Ordering::SeqCst) {
         let now_ms = start.elapsed().as_millis() as u32;
         if args.duration.is_some_and(|d| now_ms as f64 / 1000.0 >= d) {
@@ -97,69 +127,175 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             if left.is_zero() {
                 break;
             }
-            let n = transport.recv(&mut buf, left)?;
+            let n = transport.recv(&mut buf, left);
             if n > 0 {
                 station.receive(&buf[..n], start.elapsed().as_millis() as u32);
                 if let Some(r) = &recording {
                     r.radio("air", &buf[..n]);
                 }
+                // Handshake answers go at once: a robot takes the answer's stamp as our
+                // clock at the middle of its round trip, so holding it to the next tick
+                // would skew its clock offset by up to half a period.
+                let answers = station.take_outbox();
+                if !answers.is_empty() {
+                    transport.send(&answers);
+                    if let Some(r) = &recording {
+                        r.radio("base", &answers);
+                    }
+                }
             }
         }
         next += period;
         let now_ms = start.elapsed().as_millis() as u32;
+        if let Some(l) = &mut localization {
+            l.poll(&mut station, start_unix_ms, now_ms);
+        }
         station.step(now_ms);
         let out = station.take_outbox();
-        transport.send(&out)?;
+        transport.send(&out);
         if let Some(r) = recording.as_mut() {
             r.radio("base", &out);
             r.station(&station);
         }
         if now_ms / 1000 != last_report {
             last_report = now_ms / 1000;
-            let stats = station.link().stats();
-            tracing::info!(
-                accepted = stats.accepted,
-                rejected = stats.rejects.total(),
-                lost = stats.lost,
-                planner = ?station.planner().mode(),
-                "link"
-            );
-            // Per-robot link health every 5 s: last seen, accepted, lost, rejects by reason.
-            if last_report.is_multiple_of(5) {
-                for peer in station.link().peers() {
-                    let seen = peer
-                        .last_rx_ms
-                        .map(|t| format!("{} ms ago", now_ms.wrapping_sub(t)))
-                        .unwrap_or_else(|| "never".into());
-                    let rejects: Vec<String> = protocol::Reject::ALL
-                        .iter()
-                        .filter(|r| peer.rejects.get(**r) > 0)
-                        .map(|r| format!("{}={}", r.name(), peer.rejects.get(*r)))
-                        .collect();
-                    tracing::info!(
-                        robot = ?peer.address,
-                        linked = peer.is_linked(),
-                        seen = %seen,
-                        accepted = peer.accepted,
-                        lost = peer.lost,
-                        rejects = %rejects.join(","),
-                        "robot link"
-                    );
-                }
+            log_link(&station, now_ms, last_report.is_multiple_of(5));
+            if let Some(l) = localization
+                .as_ref()
+                .filter(|_| last_report.is_multiple_of(5))
+            {
+                l.log();
             }
         }
-        if station.planner().arrived() && args.duration.is_none() {
-            tracing::info!("goal reached");
-            break;
+        if args.duration.is_none() && station.planner().arrived() {
+            let at = *arrived_ms.get_or_insert_with(|| {
+                tracing::info!("goal reached");
+                now_ms
+            });
+            if now_ms.wrapping_sub(at) as f64 >= args.settle * 1000.0 {
+                break;
+            }
         }
     }
     // Leave the fleet standing.
     station.broadcast_stop(start.elapsed().as_millis() as u32);
     let out = station.take_outbox();
-    transport.send(&out)?;
+    transport.send(&out);
     if let Some(r) = recording {
         r.radio("base", &out);
         r.close()?;
     }
+    let summary = summary(&scenario.name, &station, localization.as_ref());
+    eprintln!("{}", serde_json::to_string(&summary)?);
+    if let Some(path) = &args.report {
+        std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
     Ok(())
+}
+
+/// The transport, failing soft: a modem that errors (unplugged, its peer gone) is logged
+/// every few seconds and the run goes on; the robots stop by themselves when nothing
+/// reaches them, and resume when it does again.
+struct Modem {
+    transport: Box<dyn Transport>,
+    warned: Option<Instant>,
+}
+
+impl Modem {
+    fn warn(&mut self, what: &str, e: std::io::Error) {
+        if self
+            .warned
+            .is_none_or(|t| t.elapsed() >= Duration::from_secs(5))
+        {
+            tracing::warn!("radio {what} failed: {e}");
+            self.warned = Some(Instant::now());
+        }
+    }
+
+    fn send(&mut self, bytes: &[u8]) {
+        if let Err(e) = self.transport.send(bytes) {
+            self.warn("send", e);
+        }
+    }
+
+    /// Bytes within `timeout`; none (after waiting it out) when the transport failed.
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> usize {
+        self.transport.recv(buf, timeout).unwrap_or_else(|e| {
+            self.warn("receive", e);
+            std::thread::sleep(timeout);
+            0
+        })
+    }
+}
+
+/// The link's totals every second; each robot's link health when `per_robot`.
+fn log_link(station: &BaseStation, now_ms: u32, per_robot: bool) {
+    let stats = station.link().stats();
+    tracing::info!(
+        accepted = stats.accepted,
+        rejected = stats.rejects.total(),
+        lost = stats.lost,
+        planner = ?station.planner().mode(),
+        "link"
+    );
+    if !per_robot {
+        return;
+    }
+    // Last seen, accepted, lost, rejects by reason.
+    for peer in station.link().peers() {
+        let seen = peer
+            .last_rx_ms
+            .map(|t| format!("{} ms ago", now_ms.wrapping_sub(t)))
+            .unwrap_or_else(|| "never".into());
+        let rejects: Vec<String> = protocol::Reject::ALL
+            .iter()
+            .filter(|r| peer.rejects.get(**r) > 0)
+            .map(|r| format!("{}={}", r.name(), peer.rejects.get(*r)))
+            .collect();
+        tracing::info!(
+            robot = ?peer.address,
+            linked = peer.is_linked(),
+            seen = %seen,
+            accepted = peer.accepted,
+            lost = peer.lost,
+            rejects = %rejects.join(","),
+            "robot link"
+        );
+    }
+}
+
+/// What the run did, as the station saw it: printed at the end, and `--report`.
+fn summary(
+    scenario: &str,
+    station: &BaseStation,
+    localization: Option<&super::localization::Localization>,
+) -> serde_json::Value {
+    let leader = station.config().leader;
+    let events: Vec<_> = station
+        .events()
+        .iter()
+        .map(|e| {
+            let (at_ms, event, robot) = e.describe(leader);
+            json!({ "at_s": at_ms as f64 / 1000.0, "event": event, "robot": robot })
+        })
+        .collect();
+    let stats = station.link().stats();
+    let rejects: serde_json::Map<_, _> = protocol::Reject::ALL
+        .iter()
+        .filter(|r| stats.rejects.get(**r) > 0)
+        .map(|r| (r.name().to_string(), json!(stats.rejects.get(*r))))
+        .collect();
+    json!({
+        "scenario": scenario,
+        "goal_reached": station.planner().arrived(),
+        "station_events": events,
+        "link": {
+            "accepted": stats.accepted,
+            "rejected": stats.rejects.total(),
+            "lost": stats.lost,
+            "rejects_by_reason": rejects,
+        },
+        "localization": localization.map(|l| l.counts()),
+    })
 }

@@ -19,6 +19,15 @@ pub enum FirmwareArg {
     Qemu,
 }
 
+impl From<FirmwareArg> for Firmware {
+    fn from(arg: FirmwareArg) -> Self {
+        match arg {
+            FirmwareArg::Native => Firmware::Native,
+            FirmwareArg::Qemu => Firmware::Qemu,
+        }
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct SimArgs {
     /// A scenario file or a shipped scenario's name.
@@ -74,13 +83,9 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
             .collect();
         anyhow::bail!("{}", lines.join("\n"));
     }
-    let firmware = match args.firmware {
-        FirmwareArg::Native => Firmware::Native,
-        FirmwareArg::Qemu => Firmware::Qemu,
-    };
     let name = scenario.name.clone();
     let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
-    options.firmware = firmware;
+    options.firmware = args.firmware.into();
     options.realtime = args.realtime;
     // Simulated time on a terminal (stderr); nothing when stderr is not one (CI, pipes).
     let bar = indicatif::ProgressBar::new(1000);

@@ -45,7 +45,7 @@ use std::collections::VecDeque;
 
 use glam::DVec2;
 
-use crate::geometry::Obstacle;
+use crate::geometry::{wrap_angle, Obstacle};
 use crate::map::Map;
 use apf::ApfParams;
 use route::{NoRoute, Route, RouteParams, RoutePlanner};
@@ -196,16 +196,6 @@ fn nearest_to_route(obstacles: &[Obstacle], route: &Route, from: f64, reach: f64
         .flat_map(|p| obstacles.iter().map(|o| o.nearest(*p).distance))
         .filter(|d| *d < reach)
         .fold(f64::INFINITY, f64::min)
-}
-
-fn wrap(a: f64) -> f64 {
-    let t = std::f64::consts::TAU;
-    let w = a - t * ((a + std::f64::consts::PI) / t).floor();
-    if w <= -std::f64::consts::PI {
-        w + t
-    } else {
-        w
-    }
 }
 
 impl Planner {
@@ -410,7 +400,7 @@ impl Planner {
         self.inflation = half_width.max(0.0);
         let field = self.field(pos, goal, is_last, map);
         let field_dir = field.normalize_or_zero();
-        let heading_err_field = wrap(field_dir.y.atan2(field_dir.x) - pose.heading);
+        let heading_err_field = wrap_angle(field_dir.y.atan2(field_dir.x) - pose.heading);
         self.watch(now_s, distance, heading_err_field);
 
         let (direction, strength) = match self.mode {
@@ -460,7 +450,7 @@ impl Planner {
         let err = if direction == DVec2::ZERO {
             0.0
         } else {
-            wrap(direction.y.atan2(direction.x) - pose.heading)
+            wrap_angle(direction.y.atan2(direction.x) - pose.heading)
         };
         let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
@@ -675,7 +665,7 @@ impl Planner {
         let err = if direction == DVec2::ZERO {
             0.0
         } else {
-            wrap(direction.y.atan2(direction.x) - pose.heading)
+            wrap_angle(direction.y.atan2(direction.x) - pose.heading)
         };
         let to_end = (end - s).max((route.point_at(end) - pos).length());
         let omega = self.turn_toward(p.heading_gain * err, dt);

@@ -546,7 +546,9 @@ impl Default for LinkSpec {
     }
 }
 
-/// The simulated localization system.
+/// The localization system: how the simulated one behaves (`sigma_m` … `latency_ms`),
+/// and, for real operation, where the site is on the globe and how the station watches
+/// the fixes it forwards.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct LocalizationSpec {
@@ -554,6 +556,15 @@ pub struct LocalizationSpec {
     pub heading_sigma_deg: f64,
     pub rate_hz: f64,
     pub latency_ms: f64,
+    /// The site frame on the globe, for GNSS (NMEA) sources.
+    pub origin: Option<crate::localization::SiteOrigin>,
+    /// At most this many fixes per robot per second go over the radio.
+    pub forward_hz: f64,
+    /// A robot without a fix for this long is reported `localization_lost`, s.
+    pub lost_after_s: f64,
+    /// A robot without a fix for this long stops the fleet until fixes are back, s
+    /// (until then the robots drive on odometry).
+    pub stop_after_s: f64,
 }
 
 impl Default for LocalizationSpec {
@@ -563,6 +574,10 @@ impl Default for LocalizationSpec {
             heading_sigma_deg: 0.5,
             rate_hz: 10.0,
             latency_ms: 20.0,
+            origin: None,
+            forward_hz: 10.0,
+            lost_after_s: 2.0,
+            stop_after_s: 10.0,
         }
     }
 }

@@ -270,6 +270,31 @@ impl Scenario {
             &[z.sigma_m, z.heading_sigma_deg, z.latency_ms],
         );
         p.positive("localization.rate_hz", z.rate_hz);
+        p.positive("localization.forward_hz", z.forward_hz);
+        if p.positive("localization.lost_after_s", z.lost_after_s)
+            && p.positive("localization.stop_after_s", z.stop_after_s)
+            && z.stop_after_s < z.lost_after_s
+        {
+            p.fail("localization.stop_after_s", "must be ≥ lost_after_s");
+        }
+        if let Some(o) = &z.origin {
+            if !(o.lat_deg.is_finite() && o.lat_deg.abs() < 90.0) {
+                p.fail(
+                    "localization.origin.lat_deg",
+                    "must be a latitude in (−90, 90)",
+                );
+            }
+            if !(o.lon_deg.is_finite() && o.lon_deg.abs() <= 180.0) {
+                p.fail(
+                    "localization.origin.lon_deg",
+                    "must be a longitude in [−180, 180]",
+                );
+            }
+            p.finite(
+                "localization.origin.x_axis_bearing_deg",
+                &[o.x_axis_bearing_deg],
+            );
+        }
         p.positive("sim.duration_s", self.sim.duration_s);
         for (i, f) in self.faults.iter().enumerate() {
             let at = |name: &str| format!("faults[{i}].{name}");

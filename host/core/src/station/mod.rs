@@ -3,17 +3,25 @@
 //! modem or UDP and the wall clock; the simulator drives it from the simulated radio and
 //! the simulated clock. Same code, same bytes.
 
+mod events;
+mod fixes;
+
 use std::collections::BTreeMap;
 
 use glam::DVec2;
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{
-    faults, FormationCommand, LeaderState, Message, RobotMode, Slot, Stop, Telemetry,
+    faults, FormationCommand, LeaderState, Message, PoseFix, RobotMode, Slot, Stop, Telemetry,
     VelocityCommand, WirePose,
 };
 use protocol::{units, Address, FrameDecoder, MasterKey, Reject, RejectCounts, MAX_WIRE};
 
-use crate::formation::{FormationManager, FormationSpec, Target};
+pub use events::StationEvent;
+use events::REPORTED_FAULTS;
+use fixes::FixWatch;
+pub use fixes::{FixChange, FixLimits};
+
+use crate::formation::{FormationManager, FormationSpec};
 use crate::map::Map;
 use crate::perception::Perception;
 use crate::planner::route::RouteParams;
@@ -44,6 +52,8 @@ pub struct StationConfig {
     pub follower_accel: f64,
     /// Control period, ms.
     pub period_ms: u32,
+    /// How fixes from a localization source are forwarded and watched.
+    pub fixes: FixLimits,
 }
 
 /// What the station knows of one robot.
@@ -56,91 +66,17 @@ pub struct RobotStatus {
     pub pose_at_ms: u32,
 }
 
-/// Something the operator (and the run's report) should know.
-#[derive(Debug, Clone, PartialEq)]
-pub enum StationEvent {
-    Linked {
-        robot: u16,
-        at_ms: u32,
-    },
-    Transformation {
-        to: Target,
-        at_ms: u32,
-    },
-    LeaderLost {
-        at_ms: u32,
-    },
-    LeaderBack {
-        at_ms: u32,
-    },
-    Escape {
-        at_ms: u32,
-    },
-    /// The way ahead was blocked: the route was planned again.
-    Replanned {
-        at_ms: u32,
-    },
-    /// No route to the next waypoint: the leader holds.
-    NoRoute {
-        at_ms: u32,
-        why: String,
-    },
-    Arrived {
-        at_ms: u32,
-    },
-    /// Every robot linked and reporting, followers holding slots: the leader may go.
-    FleetReady {
-        at_ms: u32,
-    },
-    /// A robot reported a fault; `halts` when the fleet was stopped for it.
-    RobotFault {
-        robot: u16,
-        fault: &'static str,
-        at_ms: u32,
-        halts: bool,
-    },
+/// Why a fix was not sent to its robot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NotForwarded {
+    UnknownRobot,
+    /// Sooner after the last one than `[localization] forward_hz` allows.
+    RateLimited,
+    /// The robot has no link yet (it would reject the frame).
+    NotLinked,
+    /// A pose or σ the wire cannot carry.
+    OutOfRange,
 }
-
-impl StationEvent {
-    /// When (station clock, ms), what (a snake_case name, as in reports and recordings)
-    /// and which robot; `leader`: the leader's id, for the events about it.
-    pub fn describe(&self, leader: u16) -> (u32, String, Option<u16>) {
-        use StationEvent as E;
-        match self {
-            E::Linked { robot, at_ms } => (*at_ms, "linked".into(), Some(*robot)),
-            E::Transformation { to, at_ms } => {
-                (*at_ms, format!("formation_to_{to:?}").to_lowercase(), None)
-            }
-            E::LeaderLost { at_ms } => (*at_ms, "leader_lost".into(), Some(leader)),
-            E::LeaderBack { at_ms } => (*at_ms, "leader_back".into(), Some(leader)),
-            E::Escape { at_ms } => (*at_ms, "local_minimum_escape".into(), None),
-            E::Replanned { at_ms } => (*at_ms, "replanned".into(), None),
-            E::NoRoute { at_ms, .. } => (*at_ms, "no_route".into(), None),
-            E::Arrived { at_ms } => (*at_ms, "goal_reached".into(), None),
-            E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
-            E::RobotFault {
-                robot,
-                fault,
-                at_ms,
-                halts,
-            } => (
-                *at_ms,
-                format!(
-                    "robot_fault:{fault}{}",
-                    if *halts { ":fleet_halted" } else { "" }
-                ),
-                Some(*robot),
-            ),
-        }
-    }
-}
-
-/// Fault flags the station reports, with their names and whether they halt the fleet.
-const REPORTED_FAULTS: [(u16, &str, bool); 3] = [
-    (faults::WHEEL_STALL_LEFT, "wheel_stall_left", true),
-    (faults::WHEEL_STALL_RIGHT, "wheel_stall_right", true),
-    (faults::POSE_FIX_REJECTED, "pose_fix_rejected", false),
-];
 
 /// The leader as the station estimates it now.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -169,6 +105,8 @@ pub struct BaseStation {
     ready: bool,
     /// A robot fault stopped the mission: Stop to all, no more commands.
     halted: bool,
+    /// Forwarding fixes from a localization source, and watching their age.
+    fix_watch: Option<FixWatch>,
     escapes_seen: u32,
     replans_seen: u32,
     no_route_seen: bool,
@@ -198,6 +136,7 @@ impl StationConfig {
             follower_speed: 0.8 * s.robot.max_speed,
             follower_accel: 0.5 * s.robot.max_accel,
             period_ms: 100,
+            fixes: FixLimits::from_spec(&s.localization),
         }
     }
 }
@@ -254,12 +193,62 @@ impl BaseStation {
             leader_lost: false,
             ready: false,
             halted: false,
+            fix_watch: None,
             escapes_seen: 0,
             replans_seen: 0,
             no_route_seen: false,
             driven: std::collections::VecDeque::new(),
             last_command: (0.0, 0.0),
         }
+    }
+
+    /// From now on the robots' fixes come from a localization source through
+    /// [`BaseStation::forward_fix`], and their age is watched (`[localization]` limits).
+    pub fn watch_fixes(&mut self, now_ms: u32) {
+        let robots = std::iter::once(self.cfg.leader).chain(self.cfg.followers.iter().copied());
+        self.fix_watch = Some(FixWatch::new(self.cfg.fixes, robots, now_ms));
+    }
+
+    /// A fix of `robot` from the localization source, valid at `valid_at_ms` (station
+    /// clock): sent to the robot as an authenticated `PoseFix` unless it came too soon
+    /// after the last one. `Err` when nothing was sent, and why.
+    pub fn forward_fix(
+        &mut self,
+        robot: u16,
+        pose: PlanPose,
+        sigma: f64,
+        valid_at_ms: u32,
+        now_ms: u32,
+    ) -> Result<(), NotForwarded> {
+        let watch = self.fix_watch.get_or_insert_with(|| {
+            let robots = std::iter::once(self.cfg.leader).chain(self.cfg.followers.iter().copied());
+            FixWatch::new(self.cfg.fixes, robots, now_ms)
+        });
+        match watch.admit(robot, now_ms) {
+            None => return Err(NotForwarded::UnknownRobot),
+            Some(false) => return Err(NotForwarded::RateLimited),
+            Some(true) => {}
+        }
+        let to = Address::Robot(robot);
+        if !self.link.peer(to).is_some_and(|p| p.is_linked()) {
+            return Err(NotForwarded::NotLinked);
+        }
+        let fix = WirePose::from_si(
+            pose.position.x as f32,
+            pose.position.y as f32,
+            pose.heading as f32,
+        )
+        .and_then(|pose| {
+            Ok(PoseFix {
+                pose,
+                sigma_mm: units::to_mm_u16(sigma as f32)?,
+            })
+        })
+        .map_err(|_| NotForwarded::OutOfRange)?;
+        // The frame's stamp is when the pose was valid: the robot matches it against its
+        // odometry history of that instant.
+        self.send(to, valid_at_ms, &Message::PoseFix(fix));
+        Ok(())
     }
 
     /// One scan of the leader's range scanner: hit points in the site frame. Hits the map
@@ -388,9 +377,12 @@ impl BaseStation {
         }
     }
 
+    /// A robot's status if its telemetry is recent and its pose means something (a robot
+    /// that has had no fix since boot does not know where it is).
     fn fresh(&self, id: u16, now_ms: u32) -> Option<&RobotStatus> {
         self.robots.get(&id).filter(|s| {
-            s.telemetry.is_some()
+            s.telemetry
+                .is_some_and(|t| t.faults & faults::NOT_LOCALIZED == 0)
                 && now_ms.wrapping_sub(s.received_ms) <= self.cfg.telemetry_timeout_ms
         })
     }
@@ -464,8 +456,10 @@ impl BaseStation {
             self.last_slots_ms = Some(now_ms);
         }
 
-        if self.halted {
-            // A robot cannot drive as told: everyone brakes and holds.
+        self.check_fixes(now_ms);
+        if self.halted || self.fix_watch.as_ref().is_some_and(FixWatch::halted) {
+            // A robot cannot drive as told, or cannot know where it is: everyone brakes
+            // and holds.
             self.send(
                 Address::Broadcast,
                 now_ms,
@@ -649,6 +643,30 @@ impl BaseStation {
                 line: slot(self.formation.line_slots()[k]),
             });
             self.send(Address::Robot(id), now_ms, &cmd);
+        }
+    }
+
+    fn check_fixes(&mut self, now_ms: u32) {
+        let Some(watch) = &mut self.fix_watch else {
+            return;
+        };
+        let mut changes = Vec::new();
+        watch.check(now_ms, &mut changes);
+        for change in changes {
+            match change {
+                FixChange::Lost(robot) => {
+                    tracing::warn!(robot, "no fixes from the localization source");
+                }
+                FixChange::Back(robot) => tracing::info!(robot, "fixes back"),
+                FixChange::Halt => {
+                    tracing::warn!("a robot has had no fix too long: the fleet stops")
+                }
+                FixChange::Resume => tracing::info!("every robot has fixes: the fleet goes on"),
+            }
+            self.events.push(StationEvent::Localization {
+                change,
+                at_ms: now_ms,
+            });
         }
     }
 

@@ -1,0 +1,105 @@
+//! What the station tells the operator and the run's report: its events, and the robots'
+//! fault flags it reports.
+
+use protocol::messages::faults;
+
+use super::FixChange;
+use crate::formation::Target;
+
+/// Something the operator (and the run's report) should know.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StationEvent {
+    Linked {
+        robot: u16,
+        at_ms: u32,
+    },
+    Transformation {
+        to: Target,
+        at_ms: u32,
+    },
+    LeaderLost {
+        at_ms: u32,
+    },
+    LeaderBack {
+        at_ms: u32,
+    },
+    Escape {
+        at_ms: u32,
+    },
+    /// The way ahead was blocked: the route was planned again.
+    Replanned {
+        at_ms: u32,
+    },
+    /// No route to the next waypoint: the leader holds.
+    NoRoute {
+        at_ms: u32,
+        why: String,
+    },
+    Arrived {
+        at_ms: u32,
+    },
+    /// Every robot linked and reporting, followers holding slots: the leader may go.
+    FleetReady {
+        at_ms: u32,
+    },
+    /// The localization watch saw a robot's fixes stop or come back, or stopped or
+    /// resumed the fleet for it.
+    Localization {
+        change: FixChange,
+        at_ms: u32,
+    },
+    /// A robot reported a fault; `halts` when the fleet was stopped for it.
+    RobotFault {
+        robot: u16,
+        fault: &'static str,
+        at_ms: u32,
+        halts: bool,
+    },
+}
+
+impl StationEvent {
+    /// When (station clock, ms), what (a snake_case name, as in reports and recordings)
+    /// and which robot; `leader`: the leader's id, for the events about it.
+    pub fn describe(&self, leader: u16) -> (u32, String, Option<u16>) {
+        use StationEvent as E;
+        match self {
+            E::Linked { robot, at_ms } => (*at_ms, "linked".into(), Some(*robot)),
+            E::Transformation { to, at_ms } => {
+                (*at_ms, format!("formation_to_{to:?}").to_lowercase(), None)
+            }
+            E::LeaderLost { at_ms } => (*at_ms, "leader_lost".into(), Some(leader)),
+            E::LeaderBack { at_ms } => (*at_ms, "leader_back".into(), Some(leader)),
+            E::Escape { at_ms } => (*at_ms, "local_minimum_escape".into(), None),
+            E::Replanned { at_ms } => (*at_ms, "replanned".into(), None),
+            E::NoRoute { at_ms, .. } => (*at_ms, "no_route".into(), None),
+            E::Arrived { at_ms } => (*at_ms, "goal_reached".into(), None),
+            E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
+            E::Localization { change, at_ms } => match change {
+                FixChange::Lost(robot) => (*at_ms, "localization_lost".into(), Some(*robot)),
+                FixChange::Back(robot) => (*at_ms, "localization_back".into(), Some(*robot)),
+                FixChange::Halt => (*at_ms, "localization_lost:fleet_halted".into(), None),
+                FixChange::Resume => (*at_ms, "localization_back:fleet_resumed".into(), None),
+            },
+            E::RobotFault {
+                robot,
+                fault,
+                at_ms,
+                halts,
+            } => (
+                *at_ms,
+                format!(
+                    "robot_fault:{fault}{}",
+                    if *halts { ":fleet_halted" } else { "" }
+                ),
+                Some(*robot),
+            ),
+        }
+    }
+}
+
+/// Fault flags the station reports, with their names and whether they halt the fleet.
+pub(super) const REPORTED_FAULTS: [(u16, &str, bool); 3] = [
+    (faults::WHEEL_STALL_LEFT, "wheel_stall_left", true),
+    (faults::WHEEL_STALL_RIGHT, "wheel_stall_right", true),
+    (faults::POSE_FIX_REJECTED, "pose_fix_rejected", false),
+];

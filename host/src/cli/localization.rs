@@ -1,0 +1,435 @@
+//! Localization in and out. In: `run --fix-feed ADDR` and `run --nmea ID=SOURCE` read fixes
+//! (one thread per source, lines through a bounded channel) for the station to forward.
+//! Out: `robots --publish-fixes` sends the simulated robots' fixes the same ways, so the
+//! whole path is tested end to end.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Read};
+use std::net::{SocketAddr, UdpSocket};
+use std::str::FromStr;
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use base_station::localization::{self, feed, nmea::NmeaReceiver, Fix, InputCounts, LineError};
+use base_station::planner::PlanPose;
+use base_station::scenario::Scenario;
+use base_station::station::{BaseStation, NotForwarded};
+use control_core::odometry::PoseFixSample;
+use glam::DVec2;
+
+/// Longest input line taken, bytes (an NMEA sentence is at most 82).
+const MAX_LINE: usize = 1024;
+/// Lines waiting for the main loop; more are dropped (and counted).
+const QUEUE: usize = 1024;
+/// A fix older than this when it arrives is not forwarded, ms.
+const MAX_FIX_AGE_MS: u64 = 1000;
+/// A fix stamped this far ahead of the station's clock is not believed, ms.
+const MAX_FIX_LEAD_MS: u64 = 500;
+
+/// Where a source's bytes come from.
+#[derive(Debug, Clone)]
+pub enum Source {
+    /// Datagrams to this local address.
+    Udp(SocketAddr),
+    /// A TCP server to connect to (reconnecting when it drops).
+    Tcp(String),
+    /// A serial port, `PATH` or `PATH@BAUD`.
+    Serial { path: String, baud: u32 },
+}
+
+impl FromStr for Source {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (kind, rest) = s.split_once(':').ok_or_else(|| {
+            format!("{s}: expected udp:ADDR, tcp:HOST:PORT or serial:PATH[@BAUD]")
+        })?;
+        match kind {
+            "udp" => rest
+                .parse()
+                .map(Source::Udp)
+                .map_err(|e| format!("{s}: {e}")),
+            "tcp" => Ok(Source::Tcp(rest.to_string())),
+            "serial" => {
+                let (path, baud) = match rest.rsplit_once('@') {
+                    Some((p, b)) => (p, b.parse().map_err(|_| format!("{s}: baud {b:?}"))?),
+                    None => (rest, 9600),
+                };
+                Ok(Source::Serial {
+                    path: path.to_string(),
+                    baud,
+                })
+            }
+            _ => Err(format!(
+                "{s}: unknown source kind {kind:?} (udp, tcp, serial)"
+            )),
+        }
+    }
+}
+
+/// `ID=SOURCE`: robot ID's GNSS receiver.
+#[derive(Debug, Clone)]
+pub struct NmeaArg {
+    pub robot: u16,
+    pub source: Source,
+}
+
+impl FromStr for NmeaArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (id, source) = s
+            .split_once('=')
+            .ok_or_else(|| format!("{s}: expected ROBOT_ID=SOURCE"))?;
+        Ok(Self {
+            robot: id.parse().map_err(|_| format!("{s}: robot id {id:?}"))?,
+            source: source.parse()?,
+        })
+    }
+}
+
+/// One line from a source, and when it arrived (Unix ms).
+struct Line {
+    source: usize,
+    text: Result<String, LineError>,
+    unix_ms: u64,
+}
+
+enum Parser {
+    Feed,
+    Nmea(NmeaReceiver),
+}
+
+struct Input {
+    name: String,
+    parser: Parser,
+    counts: InputCounts,
+}
+
+/// Every localization source of a run, read on their own threads.
+pub struct Localization {
+    inputs: Vec<Input>,
+    lines: Receiver<Line>,
+    /// Lines dropped because the main loop fell behind.
+    dropped: std::sync::Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl Localization {
+    /// Opens the sources; `None` when there are none.
+    pub fn open(
+        feed: Option<SocketAddr>,
+        nmea: &[NmeaArg],
+        scenario: &Scenario,
+    ) -> anyhow::Result<Option<Self>> {
+        if feed.is_none() && nmea.is_empty() {
+            return Ok(None);
+        }
+        let (tx, lines) = mpsc::sync_channel(QUEUE);
+        let dropped = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let mut inputs = Vec::new();
+        if let Some(addr) = feed {
+            spawn(
+                inputs.len(),
+                &Source::Udp(addr),
+                tx.clone(),
+                dropped.clone(),
+            )?;
+            inputs.push(Input {
+                name: format!("feed udp:{addr}"),
+                parser: Parser::Feed,
+                counts: InputCounts::default(),
+            });
+        }
+        for arg in nmea {
+            let Some(origin) = scenario.localization.origin else {
+                bail!("--nmea needs the site's origin on the globe: [localization] origin = {{ lat_deg = …, lon_deg = …, x_axis_bearing_deg = … }} in the site file");
+            };
+            spawn(inputs.len(), &arg.source, tx.clone(), dropped.clone())?;
+            inputs.push(Input {
+                name: format!("nmea robot {}", arg.robot),
+                parser: Parser::Nmea(NmeaReceiver::new(arg.robot, origin)),
+                counts: InputCounts::default(),
+            });
+        }
+        Ok(Some(Self {
+            inputs,
+            lines,
+            dropped,
+        }))
+    }
+
+    /// Parses what arrived and hands the fixes to the station. `start_unix_ms`: the
+    /// station clock's zero on the Unix clock.
+    pub fn poll(&mut self, station: &mut BaseStation, start_unix_ms: u64, now_ms: u32) {
+        while let Ok(line) = self.lines.try_recv() {
+            let input = &mut self.inputs[line.source];
+            let parsed = line.text.and_then(|text| match &mut input.parser {
+                Parser::Feed => feed::parse(&text),
+                Parser::Nmea(rx) => rx.line(&text, line.unix_ms),
+            });
+            let fix = match parsed {
+                Ok(Some(fix)) => fix,
+                Ok(None) => continue,
+                Err(e) => {
+                    tracing::debug!(source = %input.name, "localization line dropped: {e}");
+                    input.counts.count(&e);
+                    continue;
+                }
+            };
+            let now_unix = start_unix_ms + now_ms as u64;
+            tracing::trace!(
+                robot = fix.robot,
+                age_ms = now_unix as i64 - fix.unix_ms as i64,
+                "fix"
+            );
+            if fix.unix_ms + MAX_FIX_AGE_MS < now_unix
+                || fix.unix_ms > now_unix + MAX_FIX_LEAD_MS
+                || fix.unix_ms < start_unix_ms
+            {
+                input.counts.out_of_time += 1;
+                continue;
+            }
+            let valid_at = (fix.unix_ms - start_unix_ms) as u32;
+            let pose = PlanPose {
+                position: fix.position,
+                heading: fix.heading,
+            };
+            match station.forward_fix(fix.robot, pose, fix.sigma, valid_at, now_ms) {
+                Ok(()) => input.counts.fixes += 1,
+                Err(NotForwarded::UnknownRobot) => input.counts.unknown_robot += 1,
+                Err(NotForwarded::RateLimited | NotForwarded::NotLinked) => {
+                    input.counts.rate_limited += 1
+                }
+                Err(NotForwarded::OutOfRange) => input.counts.malformed += 1,
+            }
+        }
+    }
+
+    /// One log line per source: what it delivered and what was dropped.
+    pub fn log(&self) {
+        for input in &self.inputs {
+            let c = &input.counts;
+            tracing::info!(
+                source = %input.name,
+                forwarded = c.fixes,
+                malformed = c.malformed,
+                no_solution = c.no_solution,
+                no_heading = c.no_heading,
+                unknown_robot = c.unknown_robot,
+                out_of_time = c.out_of_time,
+                held_back = c.rate_limited,
+                "localization"
+            );
+        }
+        let dropped = self.dropped.load(std::sync::atomic::Ordering::Relaxed);
+        if dropped > 0 {
+            tracing::warn!(
+                dropped,
+                "localization lines dropped: the station fell behind"
+            );
+        }
+    }
+
+    /// Counts per source, for the summary at the end of a run.
+    pub fn counts(&self) -> BTreeMap<String, InputCounts> {
+        self.inputs
+            .iter()
+            .map(|i| (i.name.clone(), i.counts))
+            .collect()
+    }
+}
+
+/// Reads `source` on its own thread, line by line, into `tx`.
+fn spawn(
+    index: usize,
+    source: &Source,
+    tx: SyncSender<Line>,
+    dropped: std::sync::Arc<std::sync::atomic::AtomicU64>,
+) -> anyhow::Result<()> {
+    let send = move |text: Result<String, LineError>| {
+        let line = Line {
+            source: index,
+            text,
+            unix_ms: super::unix_ms().unwrap_or(0),
+        };
+        match tx.try_send(line) {
+            Ok(()) => true,
+            Err(TrySendError::Full(_)) => {
+                dropped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                true
+            }
+            Err(TrySendError::Disconnected(_)) => false,
+        }
+    };
+    match source.clone() {
+        Source::Udp(addr) => {
+            let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
+            std::thread::spawn(move || {
+                let mut buf = [0u8; 65_536];
+                while let Ok(n) = socket.recv(&mut buf) {
+                    for line in buf[..n].split(|b| *b == b'\n') {
+                        if !line.is_empty() && !send(text_of(line)) {
+                            return;
+                        }
+                    }
+                }
+            });
+        }
+        Source::Tcp(addr) => {
+            std::thread::spawn(move || loop {
+                match std::net::TcpStream::connect(&addr) {
+                    Ok(stream) => {
+                        if !read_lines(stream, &send) {
+                            return;
+                        }
+                        tracing::warn!(%addr, "localization source closed; reconnecting");
+                    }
+                    Err(e) => {
+                        tracing::warn!(%addr, "cannot connect to the localization source: {e}")
+                    }
+                }
+                std::thread::sleep(Duration::from_secs(1));
+            });
+        }
+        Source::Serial { path, baud } => {
+            let port = serialport::new(&path, baud)
+                .timeout(Duration::from_secs(3600))
+                .open()
+                .with_context(|| format!("cannot open {path}"))?;
+            std::thread::spawn(move || {
+                read_lines(port, &send);
+                tracing::warn!(%path, "localization source closed");
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Lines from a byte stream until it ends; `false` when the receiver is gone.
+fn read_lines(stream: impl Read, send: &impl Fn(Result<String, LineError>) -> bool) -> bool {
+    let mut reader = BufReader::new(stream);
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        // Bounded: a stream without newlines cannot grow the buffer past MAX_LINE.
+        match (&mut reader)
+            .take(MAX_LINE as u64 + 1)
+            .read_until(b'\n', &mut line)
+        {
+            Ok(0) | Err(_) => return true,
+            Ok(_) => {
+                if !send(text_of(&line)) {
+                    return false;
+                }
+            }
+        }
+    }
+}
+
+fn text_of(bytes: &[u8]) -> Result<String, LineError> {
+    if bytes.len() > MAX_LINE {
+        return Err(LineError::Malformed(format!(
+            "a line over {MAX_LINE} bytes"
+        )));
+    }
+    std::str::from_utf8(bytes)
+        .map(|s| s.trim_end_matches(['\r', '\n']).to_string())
+        .map_err(|_| LineError::Malformed("not UTF-8".into()))
+}
+
+/// `robots --publish-fixes`: where the simulated fixes go.
+#[derive(Debug, Clone)]
+pub enum PublishArg {
+    /// The line feed, every robot, to this UDP address.
+    Feed(SocketAddr),
+    /// NMEA 0183 of one robot's receiver, to this UDP address.
+    Nmea { robot: u16, to: SocketAddr },
+}
+
+impl FromStr for PublishArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("{s}: expected feed:ADDR or nmea:ID=ADDR");
+        match s.split_once(':').ok_or_else(bad)? {
+            ("feed", addr) => addr
+                .parse()
+                .map(PublishArg::Feed)
+                .map_err(|e| format!("{s}: {e}")),
+            ("nmea", rest) => {
+                let (id, addr) = rest.split_once('=').ok_or_else(bad)?;
+                Ok(PublishArg::Nmea {
+                    robot: id.parse().map_err(|_| format!("{s}: robot id {id:?}"))?,
+                    to: addr.parse().map_err(|e| format!("{s}: {e}"))?,
+                })
+            }
+            _ => Err(bad()),
+        }
+    }
+}
+
+/// Sends simulated fixes as a site's localization system would.
+pub struct FixPublisher {
+    socket: Option<UdpSocket>,
+    feeds: Vec<SocketAddr>,
+    nmea: BTreeMap<u16, SocketAddr>,
+    origin: Option<localization::SiteOrigin>,
+}
+
+impl FixPublisher {
+    pub fn open(args: &[PublishArg], scenario: &Scenario) -> anyhow::Result<Self> {
+        let mut publisher = Self {
+            socket: None,
+            feeds: Vec::new(),
+            nmea: BTreeMap::new(),
+            origin: scenario.localization.origin,
+        };
+        for arg in args {
+            match arg {
+                PublishArg::Feed(to) => publisher.feeds.push(*to),
+                PublishArg::Nmea { robot, to } => {
+                    if publisher.origin.is_none() {
+                        bail!("publishing NMEA needs the site's origin: [localization] origin in the scenario");
+                    }
+                    publisher.nmea.insert(*robot, *to);
+                }
+            }
+        }
+        if !args.is_empty() {
+            publisher.socket = Some(UdpSocket::bind("0.0.0.0:0")?);
+        }
+        Ok(publisher)
+    }
+
+    /// Sends `fixes` (stamped with the world's clock, ms, which started at
+    /// `epoch_unix_ms`). A datagram that cannot go is the source's loss, not an error.
+    pub fn publish(
+        &mut self,
+        fixes: &[(u16, PoseFixSample)],
+        epoch_unix_ms: u64,
+    ) -> anyhow::Result<()> {
+        let Some(socket) = &self.socket else {
+            return Ok(());
+        };
+        let mut feed = String::new();
+        for (robot, sample) in fixes {
+            let fix = Fix {
+                robot: *robot,
+                unix_ms: epoch_unix_ms + sample.time_ms as u64,
+                position: DVec2::new(sample.pose.x as f64, sample.pose.y as f64),
+                heading: sample.pose.heading as f64,
+                sigma: sample.sigma as f64,
+            };
+            feed.push_str(&feed::format(&fix));
+            if let (Some(to), Some(origin)) = (self.nmea.get(robot), &self.origin) {
+                let [gga, hdt] = localization::nmea::sentences(&fix, origin);
+                // Heading first: a receiver's position goes with the heading before it.
+                let _ = socket.send_to(format!("{hdt}\r\n{gga}\r\n").as_bytes(), to);
+            }
+        }
+        if !feed.is_empty() {
+            for to in &self.feeds {
+                let _ = socket.send_to(feed.as_bytes(), to);
+            }
+        }
+        Ok(())
+    }
+}

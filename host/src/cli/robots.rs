@@ -1,0 +1,248 @@
+//! `basestation robots SCENARIO --udp ADDR | --pty`: the scenario's robots (bodies,
+//! sensors, their control code natively or as firmware in QEMU) in real time behind a real
+//! transport, for `basestation run` to drive exactly as it drives real robots. The simulated
+//! radio sits between the transport and the robots, with the scenario's `[link]`.
+//!
+//! Prints one line on standard output once the transport is open:
+//! `udp ADDR` (the bound address) or `pty PATH` (the device for `run --port`). At the end
+//! (goal reached and settled, `--duration`, or Ctrl-C) writes the report `sim` writes.
+
+use std::net::{SocketAddr, UdpSocket};
+use std::os::fd::{AsFd, OwnedFd};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use clap::Args;
+use hil_sim::world::{BaseSide, FixPath, SimOptions, World};
+
+use super::localization::{FixPublisher, PublishArg};
+use super::sim::FirmwareArg;
+
+#[derive(Args, Debug)]
+pub struct RobotsArgs {
+    /// A scenario file or a shipped scenario's name.
+    pub scenario: String,
+    /// Listen for the base station on this UDP address; answer whoever sent last.
+    #[arg(long, conflicts_with = "pty", required_unless_present = "pty")]
+    pub udp: Option<SocketAddr>,
+    /// Behind a pseudo-terminal pair that behaves as a serial radio modem; its device path
+    /// is printed for `run --port`.
+    #[arg(long)]
+    pub pty: bool,
+    #[arg(long, value_enum, default_value = "native")]
+    pub firmware: FirmwareArg,
+    /// Random seed (radio, sensor noise) [default: the scenario's].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Write the run's report here when it ends (the schema of `sim`'s report).
+    #[arg(long, value_name = "FILE.json")]
+    pub report: Option<PathBuf>,
+    /// Also write a CSV trace: one row per robot per sample (docs/sim.md#the-trace).
+    #[arg(long, value_name = "FILE.csv")]
+    pub trace: Option<PathBuf>,
+    /// End after this many seconds [default: the scenario's duration].
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Publish the robots' position fixes to the base station instead of handing them to
+    /// the robots directly: `feed:ADDR` (the line feed over UDP) or `nmea:ID=ADDR` (NMEA
+    /// 0183 over UDP for robot ID; repeat per robot). See docs/operating.md#localization.
+    #[arg(long = "publish-fixes", value_name = "KIND:ADDR")]
+    pub publish_fixes: Vec<PublishArg>,
+    /// The clock of the published fixes lags this much, s (to test a stale source).
+    #[arg(long, default_value_t = 0.0, hide = true)]
+    pub fix_delay_s: f64,
+    /// Stop publishing fixes after this many seconds (a localization source that fails).
+    #[arg(long, value_name = "S")]
+    pub fixes_stop_at: Option<f64>,
+    #[command(flatten)]
+    pub key: super::KeyArgs,
+}
+
+/// How much longer than the settling time the robots wait after their goal, s.
+const STATION_GRACE_S: f64 = 2.0;
+
+/// The robots' side of the transport.
+enum Air {
+    /// Answers whoever sent the last datagram.
+    Udp {
+        socket: UdpSocket,
+        peer: Option<SocketAddr>,
+    },
+    /// The master side of a pseudo-terminal; the slave is kept open so that the master
+    /// keeps working while `run` closes and reopens the device.
+    Pty { master: OwnedFd, _slave: OwnedFd },
+}
+
+impl Air {
+    fn open_udp(addr: SocketAddr) -> anyhow::Result<Self> {
+        let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
+        socket.set_nonblocking(true)?;
+        println!("udp {}", socket.local_addr()?);
+        Ok(Air::Udp { socket, peer: None })
+    }
+
+    fn open_pty() -> anyhow::Result<Self> {
+        use nix::fcntl::{fcntl, FcntlArg, OFlag};
+        use nix::sys::termios;
+        let pair = nix::pty::openpty(None, None).context("cannot open a pseudo-terminal")?;
+        // Raw both ways: the protocol's bytes pass untouched (no echo, no CR/LF mapping).
+        for fd in [&pair.master, &pair.slave] {
+            let mut t = termios::tcgetattr(fd.as_fd())?;
+            termios::cfmakeraw(&mut t);
+            termios::tcsetattr(fd.as_fd(), termios::SetArg::TCSANOW, &t)?;
+        }
+        fcntl(&pair.master, FcntlArg::F_SETFL(OFlag::O_NONBLOCK))?;
+        let path = nix::unistd::ttyname(pair.slave.as_fd()).context("the pty has no name")?;
+        println!("pty {}", path.display());
+        Ok(Air::Pty {
+            master: pair.master,
+            _slave: pair.slave,
+        })
+    }
+
+    /// Everything waiting now (never blocks).
+    fn poll(&mut self, out: &mut Vec<u8>) -> anyhow::Result<()> {
+        let mut buf = [0u8; 2048];
+        loop {
+            let n = match self {
+                Air::Udp { socket, peer } => match socket.recv_from(&mut buf) {
+                    Ok((n, from)) => {
+                        *peer = Some(from);
+                        n
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return Ok(()),
+                    // A previous datagram's peer was gone (ICMP): not ours to mind.
+                    Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
+                    Err(e) => return Err(e.into()),
+                },
+                Air::Pty { master, .. } => match nix::unistd::read(&*master, &mut buf) {
+                    Ok(0) | Err(nix::errno::Errno::EAGAIN) => return Ok(()),
+                    Ok(n) => n,
+                    Err(e) => return Err(e.into()),
+                },
+            };
+            out.extend_from_slice(&buf[..n]);
+        }
+    }
+
+    fn send(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
+        if bytes.is_empty() {
+            return Ok(());
+        }
+        match self {
+            Air::Udp { socket, peer } => {
+                let Some(peer) = peer else {
+                    return Ok(()); // nobody listening yet: the air carries it nowhere
+                };
+                for chunk in bytes.chunks(1200) {
+                    match socket.send_to(chunk, *peer) {
+                        Ok(_) => {}
+                        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                        Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
+                        Err(e) => return Err(e.into()),
+                    }
+                }
+            }
+            Air::Pty { master, .. } => {
+                // A modem with nobody reading drops what its buffer cannot hold.
+                let mut rest = bytes;
+                while !rest.is_empty() {
+                    match nix::unistd::write(&*master, rest) {
+                        Ok(n) => rest = &rest[n..],
+                        Err(nix::errno::Errno::EAGAIN) => break,
+                        Err(e) => return Err(e.into()),
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
+    let scenario = super::load_scenario(&args.scenario)?;
+    let Some(key) = args.key.load()? else {
+        bail!("no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY (64 hex digits)");
+    };
+    let name = scenario.name.clone();
+    let end_s = args.duration.unwrap_or(scenario.sim.duration_s);
+    let step_us = scenario.sim.physics_step_ms as u64 * 1000;
+    let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
+    options.firmware = args.firmware.into();
+    options.base = BaseSide::External;
+    options.key = Some(Arc::new(key));
+    if !args.publish_fixes.is_empty() {
+        options.fixes = FixPath::Published;
+    }
+    let settle_s = options.settle_s;
+    let mut publisher = FixPublisher::open(&args.publish_fixes, &scenario)?;
+    let mut world = World::new(scenario, options).context("cannot start the robots")?;
+    let mut air = if args.pty {
+        Air::open_pty()?
+    } else {
+        Air::open_udp(args.udp.expect("clap requires --udp or --pty"))?
+    };
+    use std::io::Write;
+    std::io::stdout().flush()?;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing Ctrl-C")?;
+
+    // The wall clock paces the world; nothing simulated reads it.
+    let wall = Instant::now();
+    let epoch_unix_ms = super::unix_ms()?;
+    let mut heard = Vec::new();
+    while !stop.load(Ordering::SeqCst) && (world.t_us as f64) < end_s * 1e6 {
+        // The station settles as long after its own arrival, which may come a little
+        // later: give it time to finish before the robots go away.
+        if let Some(goal) = world.goal_time_s() {
+            if world.t_us as f64 / 1e6 >= goal + settle_s + STATION_GRACE_S {
+                break;
+            }
+        }
+        heard.clear();
+        air.poll(&mut heard)?;
+        world.base_transmit(&heard);
+        world.step(step_us).context("a robot's controller failed")?;
+        air.send(&world.take_base_inbox())?;
+        let t_s = world.t_us as f64 / 1e6;
+        let fixes = world.take_published_fixes();
+        if args.fixes_stop_at.is_none_or(|stop| t_s < stop) {
+            let lag_ms = (args.fix_delay_s * 1000.0) as u64;
+            publisher.publish(&fixes, epoch_unix_ms.saturating_sub(lag_ms))?;
+        }
+        let ahead = Duration::from_micros(world.t_us).saturating_sub(wall.elapsed());
+        std::thread::sleep(ahead);
+    }
+    let report = hil_sim::run::report_of(&world, wall.elapsed().as_secs_f64());
+    let path = args
+        .report
+        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.robots.json")));
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    if let Some(path) = &args.trace {
+        let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
+        let file = std::fs::File::create(path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        hil_sim::trace::write_csv(&world.recorder, &roles, std::io::BufWriter::new(file))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    eprintln!(
+        "robots: {:.1} s, goal {}, {} contacts; report {}",
+        world.t_us as f64 / 1e6,
+        match report.time_to_goal_s {
+            Some(t) => format!("reached at {t:.1} s"),
+            None => "not reached".into(),
+        },
+        report.collisions,
+        path.display()
+    );
+    Ok(())
+}
