@@ -5,7 +5,7 @@
 //! control point to its reference point, computed from the **true** leader: the wide slot
 //! point rigid to the leader's pose, the line slot point its distance back along the path
 //! the leader **drove** (recorded here at every physics step), blended by the station's
-//! current blend. Clearance = footprint to obstacle surface. Robot separation = footprint
+//! blend at the sample's instant. Clearance = footprint to obstacle surface. Robot separation = footprint
 //! to footprint.
 
 use std::collections::HashSet;
@@ -31,31 +31,41 @@ pub trait Tracked {
 /// A slot's (L, φ) in the wide formation, and in the line.
 pub type SlotPair = ((f64, f64), (f64, f64));
 
-/// What the recorder needs from whoever runs the formation: the shape now and each
-/// slot, and what each robot last said of its mode. The base station in `sim`; in
+/// What the recorder needs from whoever runs the formation: the shape at an instant and
+/// each slot, and what each robot last said of its mode. The base station in `sim`; in
 /// `robots`, whose station is another process, what was heard on the air.
 pub trait FleetView {
-    /// 0 = wide, 1 = line.
-    fn blend(&self) -> f64;
+    /// 0 = wide, 1 = line, at `t_us` on the world's clock: where the transition under way
+    /// has the blend then (the followers extrapolate to it too), not where it was at the
+    /// station's last step.
+    fn blend(&self, t_us: u64) -> f64;
     fn target(&self) -> Target;
     /// Slot `k`'s (L, φ), wide and line.
     fn slot(&self, k: usize) -> Option<SlotPair>;
     fn mode(&self, robot: u16) -> Option<RobotMode>;
 }
 
-impl FleetView for BaseStation {
-    fn blend(&self) -> f64 {
-        self.formation().blend()
+/// The base station in the world, whose clock started at `epoch_us` of the world's.
+pub struct StationView<'a> {
+    pub station: &'a BaseStation,
+    pub epoch_us: u64,
+}
+
+impl FleetView for StationView<'_> {
+    fn blend(&self, t_us: u64) -> f64 {
+        let station_s = t_us.saturating_sub(self.epoch_us) as f64 / 1e6;
+        self.station.formation().blend_at(station_s)
     }
     fn target(&self) -> Target {
-        self.formation().target()
+        self.station.formation().target()
     }
     fn slot(&self, k: usize) -> Option<SlotPair> {
-        let f = self.formation();
+        let f = self.station.formation();
         Some((*f.wide_slots().get(k)?, *f.line_slots().get(k)?))
     }
     fn mode(&self, robot: u16) -> Option<RobotMode> {
-        self.robots()
+        self.station
+            .robots()
             .get(&robot)
             .and_then(|s| s.telemetry)
             .map(|t| t.mode)
@@ -240,7 +250,7 @@ impl Recorder {
         view: &dyn FleetView,
         near_obstacle: bool,
     ) {
-        let blend = view.blend();
+        let blend = view.blend(t_us);
         // Slot k belongs to the follower with the k-th smallest id (the station's order).
         let mut ids: Vec<u16> = robots
             .iter()

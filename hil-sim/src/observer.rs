@@ -3,12 +3,17 @@
 //! from its formation command, each robot's mode from its telemetry, and when the shape
 //! changed. The recorder measures against this as `sim` measures against the station.
 //!
+//! A transition's blend follows a known curve ([`smoothstep`] over the transition's
+//! duration) from where it was when the station switched: from the first leader state that
+//! moved, the observer recovers when the switch was, and so the blend at any instant, as
+//! the station has it.
+//!
 //! Frames are parsed without checking their tags: the observer is the harness listening to
 //! its own simulated air, not a robot; the robots themselves verify everything.
 
 use std::collections::BTreeMap;
 
-use base_station::formation::{Reason, Target, Transformation};
+use base_station::formation::{smoothstep, Reason, Target, Transformation};
 use protocol::frame::{self, Address};
 use protocol::messages::RobotMode;
 use protocol::{FrameDecoder, Message};
@@ -16,18 +21,49 @@ use protocol::{FrameDecoder, Message};
 use crate::metrics::{FleetView, SlotPair};
 use crate::radio::NodeId;
 
-#[derive(Default)]
 pub struct AirObserver {
     decoders: BTreeMap<NodeId, FrameDecoder>,
-    blend: f64,
-    target: Option<Target>,
+    /// The transition's duration, s.
+    duration: f64,
+    /// The last blend heard.
+    heard: f64,
+    /// The transition under way or last done: from which blend, to what, started when
+    /// (world clock, s).
+    transition: Option<(f64, Target, f64)>,
     /// Slot index → (wide, line) as (L, φ).
     slots: BTreeMap<usize, SlotPair>,
     modes: BTreeMap<u16, RobotMode>,
     transformations: Vec<Transformation>,
 }
 
+/// The x in [0, 1] where [`smoothstep`] reaches `y` (it rises monotonically).
+fn inverse_smoothstep(y: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if smoothstep(mid) < y {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 impl AirObserver {
+    /// `transition_s`: the formation's transition duration (the scenario's).
+    pub fn new(transition_s: f64) -> Self {
+        Self {
+            decoders: BTreeMap::new(),
+            duration: transition_s,
+            heard: 0.0,
+            transition: None,
+            slots: BTreeMap::new(),
+            modes: BTreeMap::new(),
+            transformations: Vec::new(),
+        }
+    }
+
     /// Bytes node `from` put on the air at `t_s` (0 is the base station).
     pub fn overhear(&mut self, from: NodeId, bytes: &[u8], t_s: f64) {
         let decoder = self.decoders.entry(from).or_default();
@@ -48,26 +84,42 @@ impl AirObserver {
         match (sender, message) {
             (Address::Base, Message::LeaderState(s)) => {
                 let blend = s.blend as f64 / 255.0;
-                // The shape the station is heading to: where the blend moves, or rests.
-                let target = if blend >= 1.0 || blend > self.blend {
+                let moving = if blend > self.heard {
                     Some(Target::Line)
-                } else if blend <= 0.0 || blend < self.blend {
+                } else if blend < self.heard {
                     Some(Target::Wide)
                 } else {
-                    self.target
+                    None
                 };
-                if let Some(to) = target.filter(|t| self.target.is_some_and(|o| o != *t)) {
+                let current = self.transition.map(|t| t.1);
+                if let Some(to) = moving.filter(|to| current != Some(*to)) {
+                    // The first step of a new transition: when did the station switch?
+                    let end = if to == Target::Line { 1.0 } else { 0.0 };
+                    let done = ((blend - self.heard) / (end - self.heard)).clamp(0.0, 1.0);
+                    let start_s = t_s - inverse_smoothstep(done) * self.duration;
+                    self.transition = Some((self.heard, to, start_s));
                     self.transformations.push(Transformation {
                         to,
-                        start_s: t_s,
+                        start_s,
                         reason: match to {
                             Target::Line => Reason::PassageAhead,
                             Target::Wide => Reason::PassageBehind,
                         },
                     });
                 }
-                self.target = target.or(self.target);
-                self.blend = blend;
+                // Each state of the transition tells its start again; the 8-bit blend tells it
+                // best mid-way, where the curve is steep.
+                if let Some((from, to, start_s)) = &mut self.transition {
+                    let end = if *to == Target::Line { 1.0 } else { 0.0 };
+                    let done = (blend - *from) / (end - *from);
+                    if (0.1..=0.9).contains(&done) {
+                        *start_s = t_s - inverse_smoothstep(done) * self.duration;
+                        if let Some(last) = self.transformations.last_mut() {
+                            last.start_s = *start_s;
+                        }
+                    }
+                }
+                self.heard = blend;
             }
             (Address::Base, Message::FormationCommand(f)) => {
                 let (wl, wphi) = f.wide.to_si();
@@ -91,11 +143,18 @@ impl AirObserver {
 }
 
 impl FleetView for AirObserver {
-    fn blend(&self) -> f64 {
-        self.blend
+    fn blend(&self, t_us: u64) -> f64 {
+        match self.transition {
+            Some((from, to, start_s)) => {
+                let end = if to == Target::Line { 1.0 } else { 0.0 };
+                let x = (t_us as f64 / 1e6 - start_s) / self.duration;
+                from + (end - from) * smoothstep(x)
+            }
+            None => self.heard,
+        }
     }
     fn target(&self) -> Target {
-        self.target.unwrap_or(Target::Wide)
+        self.transition.map_or(Target::Wide, |t| t.1)
     }
     fn slot(&self, k: usize) -> Option<SlotPair> {
         self.slots.get(&k).copied()
@@ -121,29 +180,47 @@ mod tests {
         })
     }
 
+    /// A station's transitions (3.5 s, switching to the line at 0.25 s and back at 2.0 s,
+    /// mid-way), broadcast at 10 Hz: the observer has the station's blend at any instant.
     #[test]
-    fn a_blend_that_rises_then_falls_is_two_transformations() {
+    fn the_blend_between_leader_states_is_the_stations() {
         let key = MasterKey::from_bytes(&[7; 32]);
         let mut base: Link<4> = Link::new(Address::Base, key.broadcast(), 1, 1, Timing::default());
-        let mut observer = AirObserver::default();
+        let mut observer = AirObserver::new(3.5);
+        let station = |t: f64| {
+            let up = smoothstep((t - 0.25) / 3.5);
+            if t < 2.0 {
+                up
+            } else {
+                let from = smoothstep((2.0 - 0.25) / 3.5);
+                from * (1.0 - smoothstep((t - 2.0) / 3.5))
+            }
+        };
         let mut buf = [0u8; protocol::MAX_WIRE];
-        for (i, blend) in [0u8, 0, 100, 255, 255, 128, 0, 0].into_iter().enumerate() {
+        for i in 0..60 {
+            let t = i as f64 * 0.1;
+            let blend = (station(t) * 255.0).round() as u8;
             let n = base
-                .send(
-                    Address::Broadcast,
-                    i as u32 * 100,
-                    &leader_state(blend),
-                    &mut buf,
-                )
+                .send(Address::Broadcast, i * 100, &leader_state(blend), &mut buf)
                 .unwrap();
-            observer.overhear(0, &buf[..n], i as f64 * 0.1);
+            observer.overhear(0, &buf[..n], t);
+            // Between this state and the next, as the station has it (to the wire's 1/255);
+            // except right after a switch, which the air tells only with the next state.
+            let between = t + 0.05;
+            let got = observer.blend((between * 1e6) as u64);
+            if i >= 4 && i != 20 {
+                assert!(
+                    (got - station(between)).abs() < 0.01,
+                    "{between}: {got} vs {}",
+                    station(between)
+                );
+            }
         }
-        let seen: Vec<_> = observer
-            .transformations()
-            .iter()
-            .map(|t| (t.to, (t.start_s * 10.0).round() as u32))
-            .collect();
-        assert_eq!(seen, [(Target::Line, 2), (Target::Wide, 5)]);
-        assert_eq!(observer.blend(), 0.0);
+        let seen = observer.transformations();
+        assert_eq!(seen.len(), 2);
+        for (t, (to, start)) in seen.iter().zip([(Target::Line, 0.25), (Target::Wide, 2.0)]) {
+            assert_eq!(t.to, to);
+            assert!((t.start_s - start).abs() < 0.02, "{t:?}");
+        }
     }
 }

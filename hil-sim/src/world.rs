@@ -25,7 +25,7 @@ use rand_distr::{Distribution, Normal};
 
 use crate::brain::{Brain, BrainError, NativeBrain};
 use crate::faults::{Action, DeadBrain, Injector};
-use crate::metrics::{FleetView, Recorder, Tracked};
+use crate::metrics::{FleetView, Recorder, StationView, Tracked};
 use crate::observer::AirObserver;
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
@@ -371,7 +371,8 @@ impl World {
             robot_cfg: cfg,
             elf,
             loc_rng: ChaCha8Rng::seed_from_u64(master.random()),
-            observer: (options.base == BaseSide::External).then(AirObserver::default),
+            observer: (options.base == BaseSide::External)
+                .then(|| AirObserver::new(scenario.formation_spec().transition_duration())),
             base_inbox: Vec::new(),
             published_fixes: Vec::new(),
             next_route_point: 0,
@@ -638,9 +639,13 @@ impl World {
         if self.goal_at_us.is_none() && self.arrived() {
             self.goal_at_us = Some(self.t_us);
         }
+        let station = StationView {
+            station: &self.station,
+            epoch_us: self.base_epoch_us,
+        };
         let view: &dyn FleetView = match &self.observer {
             Some(observer) => observer,
-            None => &self.station,
+            None => &station,
         };
         self.recorder
             .observe(self.t_us, &self.robots, &self.map, view);

@@ -19,8 +19,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_basestation");
 /// #rehearsing-without-robots) the difference is +0.02 to +0.06 m, all of it at the peak
 /// of the change back to the triangle: `sim` measures against the station's blend of the
 /// previous tick (phase-locked, 100 ms old), the real-time judge against the last one heard
-/// (0–100 ms old, as the processes' phases fall). Asserting 0.05 would fail on the phase,
-/// not on the fleet.
+/// (0–100 ms old, as the processes' phases fall): the likely cause, as far as measured.
 const REAL_TIME_MARGIN_M: f64 = 0.10;
 
 /// The paper's passage, shortened for real-time tests: the same 3 m gap in a 2 m thick

@@ -162,7 +162,8 @@ const HYSTERESIS: f64 = 0.3;
 /// the formation's length, m.
 const REOPEN_AHEAD: f64 = 2.0;
 
-fn smoothstep(x: f64) -> f64 {
+/// How a transition moves the blend: from 0 to 1 as x does, flat at both ends.
+pub fn smoothstep(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
 }
@@ -328,17 +329,26 @@ impl FormationManager {
             }
         }
         if let Some(t0) = self.transition_start {
-            let end = match self.target {
-                Target::Wide => 0.0,
-                Target::Line => 1.0,
-            };
-            let s = smoothstep((now_s - t0) / self.duration);
-            self.blend = self.from_blend + (end - self.from_blend) * s;
-            if s >= 1.0 {
+            self.blend = self.blend_at(now_s);
+            if now_s - t0 >= self.duration {
                 self.transition_start = None;
             }
         }
         self.blend
+    }
+
+    /// The blend at `now_s` (station clock) as the transition under way makes it: what the
+    /// followers extrapolate to between leader states ([`FormationManager::blend`] is its
+    /// value at the last step).
+    pub fn blend_at(&self, now_s: f64) -> f64 {
+        let Some(t0) = self.transition_start else {
+            return self.blend;
+        };
+        let end = match self.target {
+            Target::Wide => 0.0,
+            Target::Line => 1.0,
+        };
+        self.from_blend + (end - self.from_blend) * smoothstep((now_s - t0) / self.duration)
     }
 
     fn switch(&mut self, to: Target, now_s: f64, reason: Reason) {
