@@ -298,6 +298,16 @@ fn events(run_report: &Value) -> Vec<(f64, String, Option<u64>)> {
         .collect()
 }
 
+/// `robots` over UDP with its report and trace in the site's directory, and `extra`
+/// arguments: the process, its report's path, its trace's path.
+fn robots_over_udp(site: &Site, scenario: &str, extra: &[&str]) -> (Process, PathBuf, PathBuf) {
+    let (report, trace) = (site.path("robots.json"), site.path("robots.csv"));
+    let mut args = vec!["robots", scenario, "--udp", "127.0.0.1:0", "--report"];
+    args.extend([report.to_str().unwrap(), "--trace", trace.to_str().unwrap()]);
+    args.extend(extra);
+    (Process::start(site, &args), report, trace)
+}
+
 /// The station is killed mid-way (no goodbye): robots stop on their own within the stop
 /// bound; a new station relinks them and finishes the mission.
 #[test]
@@ -305,20 +315,7 @@ fn a_killed_run_stops_the_fleet_and_a_restarted_run_finishes_the_mission() {
     let site = Site::new("restart");
     let scenario = site.path("short-passage.toml");
     let scenario = scenario.to_str().unwrap();
-    let (report, trace_csv) = (site.path("robots.json"), site.path("robots.csv"));
-    let mut robots = Process::start(
-        &site,
-        &[
-            "robots",
-            scenario,
-            "--udp",
-            "127.0.0.1:0",
-            "--report",
-            report.to_str().unwrap(),
-            "--trace",
-            trace_csv.to_str().unwrap(),
-        ],
-    );
+    let (mut robots, report, trace_csv) = robots_over_udp(&site, scenario, &[]);
     let at = robots.address();
     let started = Instant::now();
     let run = |name: &str| {
@@ -379,20 +376,13 @@ fn a_localization_feed_that_stops_is_reported_and_stops_the_fleet() {
     let scenario = site.path("short-passage.toml");
     let scenario = scenario.to_str().unwrap();
     let feed = format!("127.0.0.1:{}", free_udp_port());
-    let (report, trace_csv) = (site.path("robots.json"), site.path("robots.csv"));
-    let mut robots = Process::start(
+    let publish = format!("feed:{feed}");
+    let (mut robots, report, trace_csv) = robots_over_udp(
         &site,
+        scenario,
         &[
-            "robots",
-            scenario,
-            "--udp",
-            "127.0.0.1:0",
-            "--report",
-            report.to_str().unwrap(),
-            "--trace",
-            trace_csv.to_str().unwrap(),
             "--publish-fixes",
-            &format!("feed:{feed}"),
+            &publish,
             "--fixes-stop-at",
             "10",
             "--duration",
@@ -458,6 +448,11 @@ fn a_localization_feed_that_stops_is_reported_and_stops_the_fleet() {
         (13.5..15.0).contains(&(halted.0 + 0.5)),
         "halted at {} s",
         halted.0
+    );
+    assert_eq!(
+        json(&report)["collisions"],
+        0,
+        "contacts on odometry or halting"
     );
     let trace = trace(&trace_csv);
     // On odometry between the feed's end (10 s) and the halt: the leader still drives.
