@@ -21,6 +21,16 @@ if ! command -v qemu-system-arm >/dev/null 2>&1; then
 fi
 qemu-system-arm --version | head -n 1
 
+step "chromium (the operator console's browser test)"
+if ! command -v chromium >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } ||
+            echo "could not install chromium: the console's browser test will say it skipped" >&2
+    else
+        echo "chromium is missing (sudo apt-get install -y chromium): the console's browser test will say it skipped" >&2
+    fi
+fi
+
 step "firmware for both boards (QEMU mps2-an386, NUCLEO-F411RE), size budget"
 ./scripts/build-firmware.sh
 

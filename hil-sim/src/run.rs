@@ -12,18 +12,18 @@ use crate::world::{SimOptions, World};
 
 /// Runs a scenario; returns the report and the finished world (for the figure).
 pub fn simulate(scenario: Scenario, options: SimOptions) -> Result<(Report, World), BrainError> {
-    simulate_with(scenario, options, |_, _| {})
+    simulate_with(scenario, options, |_| {})
 }
 
-/// [`simulate`], calling `progress(t_s, duration_s)` as the simulated time moves.
+/// [`simulate`], calling `each_step` after every physics step.
 pub fn simulate_with(
     scenario: Scenario,
     options: SimOptions,
-    progress: impl FnMut(f64, f64),
+    each_step: impl FnMut(&mut World),
 ) -> Result<(Report, World), BrainError> {
     let wall = Instant::now();
     let mut world = World::new(scenario, options)?;
-    world.run_with(progress)?;
+    world.run_with(each_step)?;
     let report = report_of(&world, wall.elapsed().as_secs_f64());
     Ok((report, world))
 }

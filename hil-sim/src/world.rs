@@ -501,17 +501,18 @@ impl World {
 
     /// Runs to the goal (plus settling) or the scenario's duration.
     pub fn run(&mut self) -> Result<(), BrainError> {
-        self.run_with(|_, _| {})
+        self.run_with(|_| {})
     }
 
-    /// [`World::run`], calling `progress(t_s, duration_s)` after every physics step.
-    pub fn run_with(&mut self, mut progress: impl FnMut(f64, f64)) -> Result<(), BrainError> {
+    /// [`World::run`], calling `each_step` after every physics step (progress, a live
+    /// console's view and commands).
+    pub fn run_with(&mut self, mut each_step: impl FnMut(&mut World)) -> Result<(), BrainError> {
         let end_us = (self.scenario.sim.duration_s * 1e6) as u64;
         let step_us = self.scenario.sim.physics_step_ms as u64 * 1000;
         let wall = Instant::now();
         while self.t_us < end_us {
             self.step(step_us)?;
-            progress(self.t_us as f64 / 1e6, self.scenario.sim.duration_s);
+            each_step(self);
             if let Some(goal) = self.goal_at_us {
                 if self.t_us >= goal + (self.options.settle_s * 1e6) as u64 {
                     break;
@@ -736,6 +737,11 @@ impl World {
             sense(body.heading),
             sense(body.heading + std::f64::consts::PI),
         ]
+    }
+
+    /// The current base station's clock now, ms.
+    pub fn base_ms(&self) -> u32 {
+        ((self.t_us - self.base_epoch_us) / 1000) as u32
     }
 
     /// When the current base station started, s of simulated time.

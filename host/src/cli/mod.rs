@@ -1,6 +1,7 @@
 //! One module per subcommand, and what they share: scenarios and the fleet key.
 
 pub mod check;
+pub mod console;
 pub mod decode;
 pub mod localization;
 pub mod record;

@@ -49,6 +49,11 @@ pub struct RunArgs {
     /// end, as JSON (docs/operating.md#the-run-report).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<std::path::PathBuf>,
+    /// Serve the operator's console on ADDR [default: 127.0.0.1:8080]: the live map and
+    /// Stop / Emergency stop / Resume. Any address but the loopback needs the token printed
+    /// at start (docs/operating.md#the-console).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
+    pub console: Option<SocketAddr>,
     /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<std::path::PathBuf>,
@@ -97,6 +102,16 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             "no localization source (--fix-feed, --nmea): the robots drive on odometry alone"
         ),
     }
+
+    let console = match args.console {
+        Some(addr) => {
+            let console =
+                super::console::Console::start(addr, super::console::map_json(&scenario))?;
+            eprintln!("console: {}", console.url);
+            Some(console)
+        }
+        None => None,
+    };
 
     let mut recording = match &args.mcap {
         Some(path) => Some(super::record::LiveRecording::create(path, &station)?),
@@ -150,7 +165,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         if let Some(l) = &mut localization {
             l.poll(&mut station, start_unix_ms, now_ms);
         }
+        if let Some(console) = &console {
+            for command in console.commands() {
+                station.operator(command, now_ms);
+            }
+        }
         station.step(now_ms);
+        if let Some(console) = &console {
+            console.publish(&super::console::snapshot(&station, now_ms));
+        }
         let out = station.take_outbox();
         transport.send(&out);
         if let Some(r) = recording.as_mut() {

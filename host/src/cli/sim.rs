@@ -54,6 +54,10 @@ pub struct SimArgs {
     /// Run no faster than the wall clock.
     #[arg(long)]
     pub realtime: bool,
+    /// Serve the operator's console on ADDR [default: 127.0.0.1:8080] (needs `--realtime`;
+    /// any address but the loopback needs the token printed at start; docs/operating.md).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080", requires = "realtime")]
+    pub console: Option<std::net::SocketAddr>,
     /// Inject a fault, as a TOML inline table with the fields of `[[faults]]`, e.g.
     /// `--fault '{ at_s = 30, kind = "loss_burst", duration_s = 10 }'`. Repeatable.
     #[arg(long = "fault", value_name = "TABLE")]
@@ -94,11 +98,31 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
             .expect("a valid template")
             .progress_chars("=> "),
     );
-    let result = simulate_with(scenario, options, |t, end| {
+    let console = match args.console {
+        Some(addr) => {
+            let console =
+                super::console::Console::start(addr, super::console::map_json(&scenario))?;
+            eprintln!("console: {}", console.url);
+            Some(console)
+        }
+        None => None,
+    };
+    let end = scenario.sim.duration_s;
+    let result = simulate_with(scenario, options, |world| {
+        let t = world.t_us as f64 / 1e6;
         let permille = (t / end.max(1e-9) * 1000.0) as u64;
         if permille != bar.position() {
             bar.set_position(permille);
             bar.set_message(format!("{t:.0} s"));
+        }
+        if let Some(console) = &console {
+            let now_ms = world.base_ms();
+            for command in console.commands() {
+                world.station.operator(command, now_ms);
+            }
+            if world.t_us.is_multiple_of(100_000) {
+                console.publish(&super::console::snapshot(&world.station, now_ms));
+            }
         }
     });
     bar.finish_and_clear();

@@ -3,7 +3,7 @@
 
 use protocol::messages::faults;
 
-use super::FixChange;
+use super::{FixChange, OperatorCommand};
 use crate::formation::Target;
 
 /// Something the operator (and the run's report) should know.
@@ -48,6 +48,11 @@ pub enum StationEvent {
         change: FixChange,
         at_ms: u32,
     },
+    /// The operator (the console) told the fleet something.
+    Operator {
+        command: OperatorCommand,
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -74,6 +79,9 @@ impl StationEvent {
             E::NoRoute { at_ms, .. } => (*at_ms, "no_route".into(), None),
             E::Arrived { at_ms } => (*at_ms, "goal_reached".into(), None),
             E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
+            E::Operator { command, at_ms } => {
+                (*at_ms, format!("operator_{}", command.name()), None)
+            }
             E::Localization { change, at_ms } => match change {
                 FixChange::Lost(robot) => (*at_ms, "localization_lost".into(), Some(*robot)),
                 FixChange::Back(robot) => (*at_ms, "localization_back".into(), Some(*robot)),

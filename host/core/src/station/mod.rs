@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 use glam::DVec2;
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{
-    faults, FormationCommand, LeaderState, Message, PoseFix, RobotMode, Slot, Stop, Telemetry,
-    VelocityCommand, WirePose,
+    faults, EmergencyStop, FormationCommand, LeaderState, Message, PoseFix, Resume, RobotMode,
+    Slot, Stop, Telemetry, VelocityCommand, WirePose,
 };
 use protocol::{units, Address, FrameDecoder, MasterKey, Reject, RejectCounts, MAX_WIRE};
 
@@ -66,6 +66,34 @@ pub struct RobotStatus {
     pub pose_at_ms: u32,
 }
 
+/// What the operator tells the fleet (the console's buttons).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OperatorCommand {
+    /// The formation halts: every robot brakes and holds; Resume goes on.
+    Stop,
+    /// Every robot latches stopped (its motors held at zero) until Resume.
+    EmergencyStop,
+    /// Clears a Stop or an emergency stop: the mission goes on.
+    Resume,
+}
+
+impl OperatorCommand {
+    pub fn name(self) -> &'static str {
+        match self {
+            OperatorCommand::Stop => "stop",
+            OperatorCommand::EmergencyStop => "emergency_stop",
+            OperatorCommand::Resume => "resume",
+        }
+    }
+}
+
+/// The `reason` of the frames an operator's command sends.
+const OPERATOR_REASON: u8 = 3;
+
+/// A Resume is sent this many periods running: one lost frame must not leave a robot
+/// latched.
+const RESUME_REPEATS: u8 = 5;
+
 /// Why a fix was not sent to its robot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NotForwarded {
@@ -107,6 +135,10 @@ pub struct BaseStation {
     halted: bool,
     /// Forwarding fixes from a localization source, and watching their age.
     fix_watch: Option<FixWatch>,
+    /// The operator's Stop or emergency stop, held (and repeated every period) until Resume.
+    operator_hold: Option<OperatorCommand>,
+    /// Resumes still to send.
+    resumes_left: u8,
     escapes_seen: u32,
     replans_seen: u32,
     no_route_seen: bool,
@@ -194,6 +226,8 @@ impl BaseStation {
             ready: false,
             halted: false,
             fix_watch: None,
+            operator_hold: None,
+            resumes_left: 0,
             escapes_seen: 0,
             replans_seen: 0,
             no_route_seen: false,
@@ -457,6 +491,29 @@ impl BaseStation {
         }
 
         self.check_fixes(now_ms);
+        if let Some(hold) = self.operator_hold {
+            // Every period, not once: a robot that missed it (a lost frame) gets the next.
+            let message = match hold {
+                OperatorCommand::EmergencyStop => Message::EmergencyStop(EmergencyStop {
+                    reason: OPERATOR_REASON,
+                }),
+                _ => Message::Stop(Stop {
+                    reason: OPERATOR_REASON,
+                }),
+            };
+            self.send(Address::Broadcast, now_ms, &message);
+            return;
+        }
+        if self.resumes_left > 0 {
+            self.resumes_left -= 1;
+            self.send(
+                Address::Broadcast,
+                now_ms,
+                &Message::Resume(Resume {
+                    reason: OPERATOR_REASON,
+                }),
+            );
+        }
         if self.halted || self.fix_watch.as_ref().is_some_and(FixWatch::halted) {
             // A robot cannot drive as told, or cannot know where it is: everyone brakes
             // and holds.
@@ -668,6 +725,38 @@ impl BaseStation {
                 at_ms: now_ms,
             });
         }
+    }
+
+    /// The operator's command, sent at once and held (a Stop or an emergency stop is
+    /// repeated every period until Resume; Resume is repeated a few periods).
+    pub fn operator(&mut self, command: OperatorCommand, now_ms: u32) {
+        tracing::warn!(command = command.name(), "operator");
+        self.events.push(StationEvent::Operator {
+            command,
+            at_ms: now_ms,
+        });
+        match command {
+            OperatorCommand::Resume => {
+                self.operator_hold = None;
+                self.resumes_left = RESUME_REPEATS;
+            }
+            hold => {
+                self.operator_hold = Some(hold);
+                self.resumes_left = 0;
+            }
+        }
+        let reason = OPERATOR_REASON;
+        let message = match command {
+            OperatorCommand::Stop => Message::Stop(Stop { reason }),
+            OperatorCommand::EmergencyStop => Message::EmergencyStop(EmergencyStop { reason }),
+            OperatorCommand::Resume => Message::Resume(Resume { reason }),
+        };
+        self.send(Address::Broadcast, now_ms, &message);
+    }
+
+    /// The operator's Stop or emergency stop in force, if any.
+    pub fn operator_hold(&self) -> Option<OperatorCommand> {
+        self.operator_hold
     }
 
     /// Tells every robot to brake and hold (the operator stops the run).

@@ -1,0 +1,313 @@
+//! The operator's console in a real browser: headless Chromium (Debian's `chromium`;
+//! `.ci/run` installs it) loads the page of a `sim --realtime --console` run over the
+//! DevTools protocol, the page draws the map with the robots (a screenshot is kept in
+//! `target/console-test/`), and a click on Emergency stop, confirmed, stops every robot
+//! within 1 s of simulated time; Resume sets them going again.
+//!
+//! Without a browser the test says so and passes, unless `CONSOLE_BROWSER_REQUIRED` is set
+//! (CI sets it).
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use base64::Engine;
+use serde_json::{json, Value};
+
+const BIN: &str = env!("CARGO_BIN_EXE_basestation");
+
+/// The paper's passage, cut to 24 s of simulated time.
+fn scenario(dir: &Path) -> PathBuf {
+    let path = format!(
+        "{}/../scenarios/paper-passage.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).unwrap() + "\n[sim]\nduration_s = 24.0\n";
+    let file = dir.join("passage-24s.toml");
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+fn browser() -> Option<&'static str> {
+    ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+}
+
+struct Killed(Child);
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// A plain HTTP GET on localhost (the DevTools endpoint).
+fn http_get(port: u16, path: &str) -> String {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    // The endpoint may keep the connection open: read what comes within a moment.
+    s.set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    let mut bytes = Vec::new();
+    let _ = s.read_to_end(&mut bytes);
+    let text = String::from_utf8_lossy(&bytes);
+    text.split_once("\r\n\r\n")
+        .map(|x| x.1.to_string())
+        .unwrap_or_default()
+}
+
+/// The DevTools protocol over one page's WebSocket.
+struct Page {
+    socket: tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>,
+    next: u64,
+}
+
+impl Page {
+    fn call(&mut self, method: &str, params: Value) -> Value {
+        self.next += 1;
+        let id = self.next;
+        let msg = json!({ "id": id, "method": method, "params": params });
+        self.socket.send(msg.to_string().into()).unwrap();
+        loop {
+            let reply: Value = match self.socket.read().unwrap() {
+                tungstenite::Message::Text(t) => serde_json::from_str(&t).unwrap(),
+                _ => continue,
+            };
+            if reply["id"] == id {
+                assert!(reply.get("error").is_none(), "{method}: {reply}");
+                return reply["result"].clone();
+            }
+        }
+    }
+
+    fn eval(&mut self, js: &str) -> Value {
+        let r = self.call(
+            "Runtime.evaluate",
+            json!({ "expression": js, "returnByValue": true, "awaitPromise": true }),
+        );
+        r["result"]["value"].clone()
+    }
+
+    /// A mouse click at the centre of the element `id`, as a finger or a mouse gives it.
+    fn click(&mut self, id: &str) {
+        let rect = self.eval(&format!(
+            "(() => {{ const r = document.getElementById('{id}').getBoundingClientRect(); \
+             return [r.x + r.width / 2, r.y + r.height / 2]; }})()"
+        ));
+        let (x, y) = (rect[0].as_f64().unwrap(), rect[1].as_f64().unwrap());
+        for kind in ["mousePressed", "mouseReleased"] {
+            self.call(
+                "Input.dispatchMouseEvent",
+                json!({ "type": kind, "x": x, "y": y, "button": "left", "clickCount": 1 }),
+            );
+        }
+    }
+}
+
+/// The trace's rows: (t, id, v).
+fn speeds(path: &Path) -> Vec<(f64, u64, f64)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (t, id, v) = (col("t"), col("id"), col("v"));
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (
+                f[t].parse().unwrap(),
+                f[id].parse().unwrap(),
+                f[v].parse().unwrap(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
+    let Some(chromium) = browser() else {
+        assert!(
+            std::env::var_os("CONSOLE_BROWSER_REQUIRED").is_none(),
+            "CONSOLE_BROWSER_REQUIRED is set but no chromium was found"
+        );
+        eprintln!("SKIPPED: no chromium on this machine (apt-get install chromium)");
+        return;
+    };
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("console-test");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (report, trace) = (dir.join("report.json"), dir.join("trace.csv"));
+
+    let mut sim = Command::new(BIN)
+        .arg("sim")
+        .arg(scenario(&dir))
+        .args(["--realtime", "--console", "127.0.0.1:0", "--report"])
+        .arg(&report)
+        .arg("--trace")
+        .arg(&trace)
+        .arg("--plot")
+        .arg(dir.join("figure.svg"))
+        .arg("--mcap")
+        .arg(dir.join("run.mcap"))
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(sim.stderr.take().unwrap());
+    let mut line = String::new();
+    stderr.read_line(&mut line).unwrap();
+    // Keep reading: a closed pipe would end the run at its next log line.
+    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
+    let url = line
+        .trim()
+        .strip_prefix("console: ")
+        .expect("the console's address")
+        .to_string();
+    let sim = Killed(sim);
+
+    let profile = dir.join("chromium-profile");
+    let _browser = Killed(
+        Command::new(chromium)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--no-first-run",
+            ])
+            .args(["--window-size=1300,800", "--remote-debugging-port=0"])
+            .arg(format!("--user-data-dir={}", profile.display()))
+            .arg("about:blank")
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let started = Instant::now();
+    let port: u16 = loop {
+        if let Ok(text) = std::fs::read_to_string(profile.join("DevToolsActivePort")) {
+            if let Some(p) = text.lines().next().and_then(|l| l.parse().ok()) {
+                break p;
+            }
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(30),
+            "chromium did not start"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let targets: Value = loop {
+        if let Ok(v) = serde_json::from_str(&http_get(port, "/json/list")) {
+            break v;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(30),
+            "no DevTools targets"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let ws = targets
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["type"] == "page")
+        .and_then(|t| t["webSocketDebuggerUrl"].as_str())
+        .expect("a page")
+        .to_string();
+    let (socket, _) = tungstenite::connect(ws).unwrap();
+    let mut page = Page { socket, next: 0 };
+    page.call("Page.enable", json!({}));
+    page.call("Page.navigate", json!({ "url": url }));
+
+    // The page shows the fleet: three robots in the table, the map drawn with them (the
+    // leader's red is on the canvas).
+    std::thread::sleep(Duration::from_secs(6));
+    let rows = page.eval("document.querySelectorAll('#robots tr').length");
+    assert_eq!(rows, 3, "robot rows");
+    let red = page.eval(
+        "(() => { const c = document.getElementById('map'); \
+         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let n = 0; \
+         for (let i = 0; i < d.length; i += 4) if (d[i] === 0xe5 && d[i+1] === 0x39 && d[i+2] === 0x35) n++; \
+         return n; })()",
+    );
+    assert!(red.as_u64().unwrap() > 20, "the leader is not drawn: {red}");
+    let shot = page.call("Page.captureScreenshot", json!({ "format": "png" }));
+    let png = base64::engine::general_purpose::STANDARD
+        .decode(shot["data"].as_str().unwrap())
+        .unwrap();
+    std::fs::write(dir.join("console.png"), &png).unwrap();
+    println!("screenshot: {}", dir.join("console.png").display());
+
+    // Emergency stop: one click shows the confirmation, the second sends it.
+    page.click("estop");
+    assert_eq!(
+        page.eval("document.getElementById('confirm').classList.contains('hidden')"),
+        false
+    );
+    page.click("confirm");
+    std::thread::sleep(Duration::from_secs(4));
+    assert_eq!(
+        page.eval("document.getElementById('status').textContent"),
+        "held: emergency stop"
+    );
+    page.click("resume");
+
+    let mut sim = sim;
+    let start = Instant::now();
+    while sim.0.try_wait().unwrap().is_none() {
+        assert!(start.elapsed() < Duration::from_secs(60), "sim did not end");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let at = |name: &str| {
+        r["station_events"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["event"] == name)
+            .and_then(|e| e["at_s"].as_f64())
+            .unwrap_or_else(|| panic!("no {name} in {}", r["station_events"]))
+    };
+    let (stopped, resumed) = (at("operator_emergency_stop"), at("operator_resume"));
+    println!("emergency stop at {stopped:.1} s, resume at {resumed:.1} s (simulated)");
+    let rows = speeds(&trace);
+    let moving_before = rows
+        .iter()
+        .filter(|r| r.0 < stopped && r.2.abs() > 0.1)
+        .count();
+    assert!(
+        moving_before > 0,
+        "the fleet was not moving before the stop"
+    );
+    // Within 1 s every robot stands, and stays until Resume.
+    for r in rows
+        .iter()
+        .filter(|r| r.0 >= stopped + 1.0 && r.0 <= resumed)
+    {
+        assert!(
+            r.2.abs() < 0.01,
+            "robot {} at {:.3} m/s, {:.1} s",
+            r.1,
+            r.2,
+            r.0
+        );
+    }
+    // After Resume the mission goes on.
+    let leader_after = rows
+        .iter()
+        .filter(|r| r.1 == 0 && r.0 > resumed + 2.0)
+        .map(|r| r.2);
+    assert!(
+        leader_after.fold(0.0, f64::max) > 0.2,
+        "the leader did not go on after Resume"
+    );
+}
