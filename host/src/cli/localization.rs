@@ -420,9 +420,9 @@ impl FixPublisher {
             };
             feed.push_str(&feed::format(&fix));
             if let (Some(to), Some(origin)) = (self.nmea.get(robot), &self.origin) {
-                let [gga, hdt] = localization::nmea::sentences(&fix, origin);
                 // Heading first: a receiver's position goes with the heading before it.
-                let _ = socket.send_to(format!("{hdt}\r\n{gga}\r\n").as_bytes(), to);
+                let lines = localization::nmea::sentences(&fix, origin);
+                let _ = socket.send_to(lines.as_bytes(), to);
             }
         }
         if !feed.is_empty() {

@@ -1,13 +1,13 @@
 //! NMEA 0183 from a robot's GNSS/RTK receiver: position from `GGA` (or `RMC`), heading from
 //! `HDT` or `THS` (a dual-antenna receiver), the position's uncertainty from `GST` when the
-//! receiver sends it, else from `GGA`'s fix quality and HDOP. Parsed with the `nmea` crate
-//! (checksums checked); `THS`, which it does not know, is read here after the same check.
+//! receiver sends it, else from `GGA`'s fix quality and HDOP. Framing, checksums and fields
+//! by the `nmea-kit` crate (the `nmea` crate pins a `serde_with` that the Foxglove SDK's WebSocket server cannot share); a sentence without a checksum is refused.
 //!
 //! One [`NmeaReceiver`] per robot: a receiver's sentences carry no robot id.
 
 use chrono::{DateTime, NaiveTime, Utc};
-use nmea::sentences::FixType;
-use nmea::ParseResult;
+use nmea_kit::nmea::{ddmm_to_decimal, decimal_to_ddmm, Gga, Gst, Hdt, Rmc, Ths};
+use nmea_kit::NmeaEncodable;
 
 use super::{Fix, LineError, SiteOrigin};
 
@@ -15,17 +15,19 @@ use super::{Fix, LineError, SiteOrigin};
 const HEADING_FRESH_MS: u64 = 1000;
 /// A `GST` older than this no longer describes the position, ms.
 const GST_FRESH_MS: u64 = 2000;
+/// GGA's fix quality of an RTK fixed solution.
+const RTK_FIXED: u8 = 4;
 
-/// Position error at HDOP 1 by fix quality (user equivalent range error), m: what a fix
-/// counts for when the receiver sends no `GST`.
-fn uere(fix: FixType) -> Option<f64> {
-    Some(match fix {
-        FixType::Rtk => 0.02,
-        FixType::FloatRtk => 0.3,
-        FixType::DGps => 0.7,
-        FixType::Gps | FixType::Pps => 2.5,
-        FixType::Estimated | FixType::Manual | FixType::Simulation => 5.0,
-        FixType::Invalid => return None,
+/// Position error at HDOP 1 by GGA fix quality (user equivalent range error), m: what a
+/// fix counts for when the receiver sends no `GST`. `None`: no position.
+fn uere(quality: u8) -> Option<f64> {
+    Some(match quality {
+        RTK_FIXED => 0.02,
+        5 => 0.3,     // RTK float
+        2 | 9 => 0.7, // DGPS, SBAS
+        1 | 3 => 2.5, // autonomous, PPS
+        6..=8 => 5.0, // dead reckoning, manual, simulation
+        _ => return None,
     })
 }
 
@@ -36,6 +38,21 @@ pub struct NmeaReceiver {
     heading: Option<(f64, u64)>,
     /// (σ from GST, m; arrival, Unix ms).
     gst: Option<(f64, u64)>,
+}
+
+fn malformed(why: impl std::fmt::Display) -> LineError {
+    LineError::Malformed(why.to_string())
+}
+
+/// `DDMM.MMMM` with its hemisphere as signed decimal degrees.
+fn coordinate(ddmm: Option<f64>, hemisphere: Option<char>, negative: char) -> Option<f64> {
+    let v = ddmm_to_decimal(ddmm?);
+    Some(if hemisphere? == negative { -v } else { v })
+}
+
+/// `HHMMSS.sss`.
+fn time_of_day(text: &str) -> Result<NaiveTime, LineError> {
+    NaiveTime::parse_from_str(text, "%H%M%S%.f").map_err(|_| malformed(format!("time {text:?}")))
 }
 
 impl NmeaReceiver {
@@ -55,49 +72,61 @@ impl NmeaReceiver {
         if line.is_empty() {
             return Ok(None);
         }
-        if line.starts_with('$') && line.get(3..6) == Some("THS") {
-            self.heading = Some((parse_ths(line)?, now_unix_ms));
-            return Ok(None);
+        if !line.contains('*') {
+            return Err(malformed("no checksum"));
         }
-        let malformed = |e: nmea::Error| LineError::Malformed(e.to_string());
-        let (time, lat, lon, sigma) = match nmea::parse_str(line) {
-            Ok(ParseResult::GGA(gga)) => {
-                let fix = gga.fix_type.unwrap_or(FixType::Invalid);
-                let Some(uere) = uere(fix) else {
-                    return Err(LineError::NoSolution);
-                };
-                let (Some(lat), Some(lon), Some(time)) =
-                    (gga.latitude, gga.longitude, gga.fix_time)
-                else {
+        let frame = nmea_kit::parse_frame(line).map_err(|e| malformed(format!("{e:?}")))?;
+        let fields = &frame.fields;
+        let (time, lat, lon, sigma) = match frame.sentence_type {
+            "GGA" => {
+                let gga = Gga::parse(fields).ok_or_else(|| malformed("GGA fields"))?;
+                let uere = gga.quality.and_then(uere).ok_or(LineError::NoSolution)?;
+                let (Some(lat), Some(lon), Some(time)) = (
+                    coordinate(gga.lat, gga.ns, 'S'),
+                    coordinate(gga.lon, gga.ew, 'W'),
+                    gga.time,
+                ) else {
                     return Err(LineError::NoSolution);
                 };
                 let hdop = gga.hdop.map_or(2.0, f64::from).max(0.5);
-                (time, lat, lon, uere * hdop)
+                (time_of_day(&time)?, lat, lon, uere * hdop)
             }
-            Ok(ParseResult::RMC(rmc)) => {
-                use nmea::sentences::rmc::RmcStatusOfFix as S;
-                let (Some(lat), Some(lon), Some(time), S::Autonomous | S::Differential) =
-                    (rmc.lat, rmc.lon, rmc.fix_time, rmc.status_of_fix)
-                else {
+            "RMC" => {
+                let rmc = Rmc::parse(fields).ok_or_else(|| malformed("RMC fields"))?;
+                let (Some('A'), Some(lat), Some(lon), Some(time)) = (
+                    rmc.status,
+                    coordinate(rmc.lat, rmc.ns, 'S'),
+                    coordinate(rmc.lon, rmc.ew, 'W'),
+                    rmc.time,
+                ) else {
                     return Err(LineError::NoSolution);
                 };
-                (time, lat, lon, uere(FixType::Gps).unwrap_or(2.5))
+                (time_of_day(&time)?, lat, lon, uere(1).unwrap_or(2.5))
             }
-            Ok(ParseResult::HDT(hdt)) => {
-                let heading = hdt.heading.ok_or(LineError::NoSolution)?;
-                self.heading = Some((heading as f64, now_unix_ms));
+            "HDT" => {
+                let hdt = Hdt::parse(fields).ok_or_else(|| malformed("HDT fields"))?;
+                self.heading = Some((true_heading(hdt.heading_true)?, now_unix_ms));
                 return Ok(None);
             }
-            Ok(ParseResult::GST(gst)) => {
-                let (Some(a), Some(b)) = (gst.lat_sd, gst.long_sd) else {
+            "THS" => {
+                let ths = Ths::parse(fields).ok_or_else(|| malformed("THS fields"))?;
+                // Mode A (autonomous) or D (differential) is a heading; E, M, S, V are not.
+                if !matches!(ths.mode, Some('A' | 'D')) {
+                    return Err(LineError::NoSolution);
+                }
+                self.heading = Some((true_heading(ths.heading_true)?, now_unix_ms));
+                return Ok(None);
+            }
+            "GST" => {
+                let gst = Gst::parse(fields).ok_or_else(|| malformed("GST fields"))?;
+                let (Some(a), Some(b)) = (gst.std_lat, gst.std_lon) else {
                     return Err(LineError::NoSolution);
                 };
                 let sigma = ((a as f64).powi(2) + (b as f64).powi(2)).sqrt() / 2f64.sqrt();
                 self.gst = Some((sigma, now_unix_ms));
                 return Ok(None);
             }
-            Ok(_) => return Ok(None), // a sentence this receiver needs not
-            Err(e) => return Err(malformed(e)),
+            _ => return Ok(None), // a sentence this receiver needs not
         };
         let Some((heading, _)) = self
             .heading
@@ -110,7 +139,7 @@ impl NmeaReceiver {
             .filter(|(_, at)| now_unix_ms.saturating_sub(*at) <= GST_FRESH_MS)
             .map_or(sigma, |(s, _)| s);
         if !(lat.is_finite() && lon.is_finite() && lat.abs() <= 90.0 && lon.abs() <= 180.0) {
-            return Err(LineError::Malformed(format!("position {lat}, {lon}")));
+            return Err(malformed(format!("position {lat}, {lon}")));
         }
         Ok(Some(Fix {
             robot: self.robot,
@@ -122,29 +151,14 @@ impl NmeaReceiver {
     }
 }
 
-/// `$xxTHS,heading,mode*hh`: true heading from a dual-antenna receiver (the `nmea` crate
-/// does not know it); mode `A` (autonomous) or `D` (differential) is a heading, anything
-/// else is not.
-fn parse_ths(line: &str) -> Result<f64, LineError> {
-    let malformed = |why: &str| LineError::Malformed(format!("THS: {why}"));
-    let (body, sum) = line[1..]
-        .split_once('*')
-        .ok_or_else(|| malformed("no checksum"))?;
-    let sum = u8::from_str_radix(sum, 16).map_err(|_| malformed("checksum not hex"))?;
-    if body.bytes().fold(0u8, |a, b| a ^ b) != sum {
-        return Err(malformed("checksum mismatch"));
+/// A true heading field: degrees in [0, 360].
+fn true_heading(field: Option<f32>) -> Result<f64, LineError> {
+    let h = field.ok_or(LineError::NoSolution)? as f64;
+    if h.is_finite() && (0.0..=360.0).contains(&h) {
+        Ok(h)
+    } else {
+        Err(malformed(format!("heading {h}")))
     }
-    let mut fields = body.split(',').skip(1);
-    let heading = fields.next().unwrap_or("");
-    match fields.next() {
-        Some("A" | "D") => {}
-        _ => return Err(LineError::NoSolution),
-    }
-    heading
-        .parse::<f64>()
-        .ok()
-        .filter(|h| h.is_finite() && (0.0..=360.0).contains(h))
-        .ok_or_else(|| LineError::Malformed(format!("THS heading {heading:?}")))
 }
 
 /// A UTC time of day on the day (yesterday, today or tomorrow) that puts it nearest `now`.
@@ -160,38 +174,46 @@ fn time_of_day_to_unix_ms(time: NaiveTime, now_unix_ms: u64) -> u64 {
         .max(0) as u64
 }
 
-/// Sentences a receiver at `fix` would send: `GGA` (RTK fixed) and `HDT`, with checksums.
-/// For the simulated robots' receivers and for tests.
-pub fn sentences(fix: &Fix, origin: &SiteOrigin) -> [String; 2] {
+/// Sentences a receiver at `fix` would send: `HDT` then `GGA` (RTK fixed, HDOP from σ),
+/// with checksums and line ends. For the simulated robots' receivers and for tests.
+pub fn sentences(fix: &Fix, origin: &SiteOrigin) -> String {
     let (lat, lon) = origin.to_wgs84(fix.position);
     let t = DateTime::<Utc>::from_timestamp_millis(fix.unix_ms as i64).unwrap_or_default();
-    let time = t.format("%H%M%S%.3f");
-    let angle = |deg: f64, width: usize| {
-        let d = deg.abs().trunc();
-        let m = (deg.abs() - d) * 60.0;
-        format!("{:0width$}{m:011.8}", d as u32)
+    let hdop = (fix.sigma / uere(RTK_FIXED).unwrap_or(0.02)).clamp(0.5, 99.0);
+    let gga = Gga {
+        time: Some(t.format("%H%M%S%.3f").to_string()),
+        lat: Some(decimal_to_ddmm(lat.abs())),
+        ns: Some(if lat >= 0.0 { 'N' } else { 'S' }),
+        lon: Some(decimal_to_ddmm(lon.abs())),
+        ew: Some(if lon >= 0.0 { 'E' } else { 'W' }),
+        quality: Some(RTK_FIXED),
+        num_sats: Some(12),
+        hdop: Some(hdop as f32),
+        altitude: Some(0.0),
+        alt_unit: Some('M'),
+        geoid_sep: Some(0.0),
+        geoid_unit: Some('M'),
+        dgps_age: None,
+        dgps_station: None,
     };
-    let hdop = (fix.sigma / uere(FixType::Rtk).unwrap_or(0.02)).clamp(0.5, 99.0);
-    let gga = format!(
-        "GPGGA,{time},{},{},{},{},4,12,{hdop:.1},0.0,M,0.0,M,,",
-        angle(lat, 2),
-        if lat >= 0.0 { 'N' } else { 'S' },
-        angle(lon, 3),
-        if lon >= 0.0 { 'E' } else { 'W' },
-    );
-    let hdt = format!("GPHDT,{:.2},T", origin.heading_to_true(fix.heading));
-    [with_checksum(&gga), with_checksum(&hdt)]
-}
-
-fn with_checksum(body: &str) -> String {
-    let sum = body.bytes().fold(0u8, |a, b| a ^ b);
-    format!("${body}*{sum:02X}")
+    let hdt = Hdt {
+        heading_true: Some(origin.heading_to_true(fix.heading) as f32),
+    };
+    [hdt.to_sentence("GP"), gga.to_sentence("GP")]
+        .into_iter()
+        .flatten()
+        .collect()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use glam::DVec2;
+
+    fn with_checksum(body: &str) -> String {
+        let sum = body.bytes().fold(0u8, |a, b| a ^ b);
+        format!("${body}*{sum:02X}")
+    }
 
     const SITE: SiteOrigin = SiteOrigin {
         lat_deg: 47.3769,
@@ -211,10 +233,11 @@ mod tests {
             sigma: 0.02,
         };
         let mut rx = NmeaReceiver::new(2, SITE);
-        let [gga, hdt] = sentences(&fix, &SITE);
-        assert_eq!(rx.line(&gga, NOW), Err(LineError::NoHeading));
-        assert_eq!(rx.line(&hdt, NOW), Ok(None));
-        let got = rx.line(&gga, NOW).unwrap().unwrap();
+        let both = sentences(&fix, &SITE);
+        let [hdt, gga]: [&str; 2] = both.lines().collect::<Vec<_>>().try_into().unwrap();
+        assert_eq!(rx.line(gga, NOW), Err(LineError::NoHeading));
+        assert_eq!(rx.line(hdt, NOW), Ok(None));
+        let got = rx.line(gga, NOW).unwrap().unwrap();
         assert_eq!(got.robot, 2);
         assert_eq!(got.unix_ms, fix.unix_ms);
         assert!((got.position - fix.position).length() < 0.005, "{got:?}");
@@ -250,6 +273,7 @@ mod tests {
             "$GPGGA,1,2,3*00",
             "GPGGA,,,,",
             "$GPHDT,12.0,T*FF",
+            "$GPHDT,12.0,T",
             "\u{0}\u{ff}garbage",
             &with_checksum("GNTHS,400,A"),
             &"$GPGGA,".repeat(100),
