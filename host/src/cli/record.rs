@@ -1,9 +1,13 @@
-//! `run --mcap FILE`: the run recorded live as MCAP (the same channels as a simulation's
-//! recording where the station knows them): the radio bytes both ways, the base station's
-//! events, each robot's pose as its telemetry reports it. Timestamps: the wall clock.
+//! `run --mcap FILE` / `--live [ADDR]`: the run recorded as MCAP and/or served live over
+//! the Foxglove WebSocket protocol, from the same log calls (the same channels as a
+//! simulation's recording where the station knows them): the radio bytes both ways, the
+//! base station's events, each robot's pose as its telemetry reports it. `sim --realtime
+//! --live` serves the same. Timestamps: the caller's clock (the wall clock in `run`, the
+//! simulated one in `sim`).
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
+use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::SystemTime;
@@ -11,12 +15,16 @@ use std::time::SystemTime;
 use anyhow::Context as _;
 use base_station::station::BaseStation;
 use foxglove::messages::{Log, PoseInFrame};
-use foxglove::{Channel, Context, McapWriter, McapWriterHandle, RawChannel};
+use foxglove::{
+    Channel, Context, McapWriter, McapWriterHandle, RawChannel, WebSocketServer,
+    WebSocketServerHandle,
+};
 use hil_sim::recording::{events_channel, log_event, log_radio, pose, radio_channel, stamp, FRAME};
 
 pub struct LiveRecording {
     _ctx: Arc<Context>,
-    writer: McapWriterHandle<BufWriter<std::fs::File>>,
+    writer: Option<McapWriterHandle<BufWriter<std::fs::File>>>,
+    server: Option<WebSocketServerHandle>,
     radio: Arc<RawChannel>,
     events: Channel<Log>,
     poses: BTreeMap<u16, (Channel<PoseInFrame>, u32)>,
@@ -24,36 +32,65 @@ pub struct LiveRecording {
 }
 
 /// Now, ns since the Unix epoch.
-fn now_ns() -> u64 {
+pub fn now_ns() -> u64 {
     SystemTime::now()
         .duration_since(SystemTime::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
 impl LiveRecording {
-    pub fn create(path: &Path, station: &BaseStation) -> anyhow::Result<Self> {
+    /// Records to `mcap` and/or serves on `live` (either may be absent), a pose channel per
+    /// robot of `robots`.
+    pub fn create(
+        mcap: Option<&Path>,
+        live: Option<SocketAddr>,
+        robots: impl IntoIterator<Item = u16>,
+    ) -> anyhow::Result<Self> {
         let ctx = Context::new();
-        let file = std::fs::File::create(path)
-            .with_context(|| format!("cannot create {}", path.display()))?;
-        let writer = McapWriter::new()
-            .context(&ctx)
-            .create(BufWriter::new(file))
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        let writer = match mcap {
+            Some(path) => {
+                let file = std::fs::File::create(path)
+                    .with_context(|| format!("cannot create {}", path.display()))?;
+                let writer = McapWriter::new()
+                    .context(&ctx)
+                    .create(BufWriter::new(file))
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                Some(writer)
+            }
+            None => None,
+        };
+        let server = match live {
+            Some(addr) => {
+                let server = WebSocketServer::new()
+                    .name("sweeper base station")
+                    .context(&ctx)
+                    .bind(addr.ip().to_string(), addr.port())
+                    .start_blocking()
+                    .with_context(|| format!("cannot serve Foxglove on {addr}"))?;
+                eprintln!(
+                    "live (Foxglove WebSocket): ws://{}:{}",
+                    addr.ip(),
+                    server.port()
+                );
+                Some(server)
+            }
+            None => None,
+        };
         let radio = radio_channel(&ctx).map_err(anyhow::Error::msg)?;
         let events = events_channel(&ctx);
-        let poses = station
-            .robots()
-            .keys()
+        let poses = robots
+            .into_iter()
             .map(|id| {
                 let ch = ctx
                     .channel_builder(format!("/robot_{id}/pose"))
                     .build::<PoseInFrame>();
-                (*id, (ch, u32::MAX))
+                (id, (ch, u32::MAX))
             })
             .collect();
         Ok(Self {
             _ctx: ctx,
             writer,
+            server,
             radio,
             events,
             poses,
@@ -61,16 +98,15 @@ impl LiveRecording {
         })
     }
 
-    /// Bytes the station sent (`from` `base`) or received (`air`: any sender).
-    pub fn radio(&self, from: &str, bytes: &[u8]) {
+    /// Bytes the station sent (`from` `base`) or received (`air`: any sender) at `t_ns`.
+    pub fn radio(&self, from: &str, bytes: &[u8], t_ns: u64) {
         if !bytes.is_empty() {
-            log_radio(&self.radio, from, bytes, now_ns());
+            log_radio(&self.radio, from, bytes, t_ns);
         }
     }
 
-    /// What the station learnt since the last call: new events, new telemetry poses.
-    pub fn station(&mut self, station: &BaseStation) {
-        let t = now_ns();
+    /// What the station learnt since the last call, at `t`: new events, new telemetry poses.
+    pub fn station(&mut self, station: &BaseStation, t: u64) {
         let leader = station.config().leader;
         for e in &station.events()[self.events_logged..] {
             let (_, name, robot) = e.describe(leader);
@@ -100,9 +136,12 @@ impl LiveRecording {
     }
 
     pub fn close(self) -> anyhow::Result<()> {
-        self.writer
-            .close()
-            .map(|_| ())
-            .context("cannot finish the recording")
+        if let Some(server) = self.server {
+            server.stop().wait_blocking();
+        }
+        match self.writer {
+            Some(w) => w.close().map(|_| ()).context("cannot finish the recording"),
+            None => Ok(()),
+        }
     }
 }

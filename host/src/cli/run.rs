@@ -54,6 +54,10 @@ pub struct RunArgs {
     /// at start (docs/operating.md#the-console).
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
     pub console: Option<SocketAddr>,
+    /// Serve the run live over the Foxglove WebSocket protocol on ADDR [default:
+    /// 127.0.0.1:8765]: the channels of `--mcap`, for Foxglove or Lichtblick.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    pub live: Option<SocketAddr>,
     /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<std::path::PathBuf>,
@@ -113,10 +117,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         None => None,
     };
 
-    let mut recording = match &args.mcap {
-        Some(path) => Some(super::record::LiveRecording::create(path, &station)?),
-        None => None,
+    let mut recording = match (&args.mcap, args.live) {
+        (None, None) => None,
+        (mcap, live) => Some(super::record::LiveRecording::create(
+            mcap.as_deref(),
+            live,
+            station.robots().keys().copied(),
+        )?),
     };
+    let now_ns = super::record::now_ns;
 
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
@@ -146,7 +155,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             if n > 0 {
                 station.receive(&buf[..n], start.elapsed().as_millis() as u32);
                 if let Some(r) = &recording {
-                    r.radio("air", &buf[..n]);
+                    r.radio("air", &buf[..n], now_ns());
                 }
                 // Handshake answers go at once: a robot takes the answer's stamp as our
                 // clock at the middle of its round trip, so holding it to the next tick
@@ -155,7 +164,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
                 if !answers.is_empty() {
                     transport.send(&answers);
                     if let Some(r) = &recording {
-                        r.radio("base", &answers);
+                        r.radio("base", &answers, now_ns());
                     }
                 }
             }
@@ -177,8 +186,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         let out = station.take_outbox();
         transport.send(&out);
         if let Some(r) = recording.as_mut() {
-            r.radio("base", &out);
-            r.station(&station);
+            r.radio("base", &out, now_ns());
+            r.station(&station, now_ns());
         }
         if now_ms / 1000 != last_report {
             last_report = now_ms / 1000;
@@ -205,7 +214,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let out = station.take_outbox();
     transport.send(&out);
     if let Some(r) = recording {
-        r.radio("base", &out);
+        r.radio("base", &out, now_ns());
         r.close()?;
     }
     let summary = summary(&scenario.name, &station, localization.as_ref());

@@ -58,6 +58,11 @@ pub struct SimArgs {
     /// any address but the loopback needs the token printed at start; docs/operating.md).
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080", requires = "realtime")]
     pub console: Option<std::net::SocketAddr>,
+    /// Serve the run live over the Foxglove WebSocket protocol on ADDR [default:
+    /// 127.0.0.1:8765] (needs `--realtime`): the channels `run --live` serves, on the
+    /// simulated clock.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765", requires = "realtime")]
+    pub live: Option<std::net::SocketAddr>,
     /// Inject a fault, as a TOML inline table with the fields of `[[faults]]`, e.g.
     /// `--fault '{ at_s = 30, kind = "loss_burst", duration_s = 10 }'`. Repeatable.
     #[arg(long = "fault", value_name = "TABLE")]
@@ -107,6 +112,15 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
+    let mut live = match args.live {
+        Some(addr) => Some(super::record::LiveRecording::create(
+            None,
+            Some(addr),
+            scenario.robots.iter().map(|r| r.id),
+        )?),
+        None => None,
+    };
+    let mut live_sent = 0;
     let end = scenario.sim.duration_s;
     let result = simulate_with(scenario, options, |world| {
         let t = world.t_us as f64 / 1e6;
@@ -124,7 +138,21 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
                 console.publish(&super::console::snapshot(&world.station, now_ms));
             }
         }
+        if let Some(live) = live.as_mut() {
+            // What went on the air since the last step: the station's as `base`, the rest
+            // as the station heard it (`air`).
+            for (t_us, from, bytes) in &world.transmitted[live_sent..] {
+                live.radio(if *from == 0 { "base" } else { "air" }, bytes, t_us * 1000);
+            }
+            live_sent = world.transmitted.len();
+            if world.t_us.is_multiple_of(100_000) {
+                live.station(&world.station, world.t_us * 1000);
+            }
+        }
     });
+    if let Some(live) = live {
+        live.close()?;
+    }
     bar.finish_and_clear();
     let (report, world) = result.context("the simulation failed")?;
 

@@ -1,0 +1,81 @@
+//! What recording costs: the wall time of writing a run's MCAP (zstd chunks) against the
+//! wall time of simulating it, and the file's size, for `paper-obstacles` and an hour of
+//! sweeping an empty lot. `cargo bench -p hil-sim --bench recording` (prints a table;
+//! medians of 5 runs each).
+
+use std::time::Instant;
+
+use base_station::scenario::Scenario;
+use hil_sim::run::simulate;
+use hil_sim::world::SimOptions;
+
+fn paper_obstacles() -> Scenario {
+    let path = format!(
+        "{}/../scenarios/paper-obstacles.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    Scenario::load(std::path::Path::new(&path)).unwrap()
+}
+
+/// The paper's fleet sweeping a 120 × 40 m lot back and forth for a simulated hour.
+fn an_hour_on_a_lot() -> Scenario {
+    let mut s = paper_obstacles();
+    s.name = "an-hour-on-a-lot".into();
+    s.map.obstacles.clear();
+    s.map.bounds = None;
+    s.robots[0].start.x = 5.0;
+    s.robots[0].start.y = 5.0;
+    s.robots[1].start.x = 2.2;
+    s.robots[1].start.y = 6.5;
+    s.robots[2].start.x = 2.2;
+    s.robots[2].start.y = 3.5;
+    s.route.waypoints = (0..14)
+        .flat_map(|i| {
+            let y = 5.0 + (i % 7) as f64 * 5.0;
+            let (a, b) = if i % 2 == 0 {
+                (5.0, 115.0)
+            } else {
+                (115.0, 5.0)
+            };
+            [[a, y], [b, y]]
+        })
+        .skip(1)
+        .collect();
+    s.route.goal = s.route.waypoints.pop();
+    s.sim.duration_s = 3600.0;
+    s
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    println!("| run | simulated | simulate (wall) | write MCAP (wall) | recording / simulation | MCAP size |");
+    println!("| --- | --- | --- | --- | --- | --- |");
+    let dir = std::env::temp_dir();
+    for scenario in [paper_obstacles(), an_hour_on_a_lot()] {
+        let (mut sims, mut writes, mut size, mut sim_s) = (Vec::new(), Vec::new(), 0, 0.0);
+        for _ in 0..5 {
+            let t = Instant::now();
+            let (report, world) = simulate(scenario.clone(), SimOptions::new(1)).unwrap();
+            sims.push(t.elapsed().as_secs_f64());
+            let path = dir.join(format!("{}-bench.mcap", scenario.name));
+            let t = Instant::now();
+            hil_sim::recording::write_mcap(&world, &report, &path).unwrap();
+            writes.push(t.elapsed().as_secs_f64());
+            size = std::fs::metadata(&path).unwrap().len();
+            sim_s = report.sim_time_s;
+        }
+        let (sim, write) = (median(sims), median(writes));
+        println!(
+            "| {} | {sim_s:.0} s | {:.0} ms | {:.0} ms | {:.0} % | {:.1} MB |",
+            scenario.name,
+            sim * 1e3,
+            write * 1e3,
+            write / sim * 100.0,
+            size as f64 / 1e6
+        );
+    }
+}

@@ -1,0 +1,111 @@
+//! `sim --realtime --live`: a WebSocket client speaking the Foxglove protocol (as Foxglove or
+//! Lichtblick do) subscribes to a robot's pose and receives it, stamped with the simulated
+//! clock.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+use tungstenite::client::IntoClientRequest;
+use tungstenite::Message;
+
+struct Killed(Child);
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn a_foxglove_client_receives_the_robots_poses_live() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("live-test");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut sim = Command::new(env!("CARGO_BIN_EXE_basestation"))
+        .args([
+            "sim",
+            "paper-passage",
+            "--realtime",
+            "--live",
+            "127.0.0.1:0",
+            "--report",
+        ])
+        .arg(dir.join("report.json"))
+        .arg("--plot")
+        .arg(dir.join("figure.svg"))
+        .arg("--mcap")
+        .arg(dir.join("run.mcap"))
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(sim.stderr.take().unwrap());
+    let url = loop {
+        let mut line = String::new();
+        assert!(
+            stderr.read_line(&mut line).unwrap() > 0,
+            "sim ended without serving"
+        );
+        if let Some(url) = line.trim().strip_prefix("live (Foxglove WebSocket): ") {
+            break url.to_string();
+        }
+    };
+    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
+    let _sim = Killed(sim);
+
+    let mut request = url.into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+    let (mut socket, _) = tungstenite::connect(request).unwrap();
+    let start = Instant::now();
+    let mut pose_channel = None;
+    let mut stamps = Vec::new();
+    while stamps.len() < 20 {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "{} poses in 20 s (channel {pose_channel:?})",
+            stamps.len()
+        );
+        match socket.read().unwrap() {
+            Message::Text(text) => {
+                let msg: Value = serde_json::from_str(&text).unwrap();
+                if msg["op"] != "advertise" {
+                    continue;
+                }
+                let Some(ch) = msg["channels"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|c| c["topic"] == "/robot_0/pose")
+                else {
+                    continue;
+                };
+                assert_eq!(ch["schemaName"], "foxglove.PoseInFrame", "{ch}");
+                pose_channel = ch["id"].as_u64();
+                let subscribe = json!({
+                    "op": "subscribe",
+                    "subscriptions": [{ "id": 7, "channelId": pose_channel }],
+                });
+                socket.send(Message::text(subscribe.to_string())).unwrap();
+            }
+            // Message data: opcode 1, subscription id (u32 LE), timestamp (u64 LE, ns), payload.
+            Message::Binary(data) if data.first() == Some(&1) && data.len() > 13 => {
+                let sub = u32::from_le_bytes(data[1..5].try_into().unwrap());
+                let t = u64::from_le_bytes(data[5..13].try_into().unwrap());
+                assert_eq!(sub, 7);
+                stamps.push(t);
+            }
+            _ => {}
+        }
+    }
+    // On the simulated clock: from the run's start, increasing, about 10 Hz.
+    assert!(stamps.windows(2).all(|w| w[1] >= w[0]), "{stamps:?}");
+    let span_s = (stamps[stamps.len() - 1] - stamps[0]) as f64 / 1e9;
+    assert!((1.0..4.0).contains(&span_s), "20 poses over {span_s} s");
+    assert!(
+        stamps[0] < 60_000_000_000,
+        "not the simulated clock: {}",
+        stamps[0]
+    );
+}
