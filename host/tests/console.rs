@@ -7,14 +7,18 @@
 //! Without a browser the test says so and passes, unless `CONSOLE_BROWSER_REQUIRED` is set
 //! (CI sets it).
 
+mod common;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use base64::Engine;
 use serde_json::{json, Value};
+
+use common::Killed;
 
 const BIN: &str = env!("CARGO_BIN_EXE_basestation");
 
@@ -39,14 +43,6 @@ fn browser() -> Option<&'static str> {
                 .output()
                 .is_ok_and(|o| o.status.success())
         })
-}
-
-struct Killed(Child);
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 /// A plain HTTP GET on localhost (the DevTools endpoint).
@@ -183,6 +179,8 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
                 "--headless",
                 "--no-sandbox",
                 "--disable-gpu",
+                // Containers often have a small /dev/shm.
+                "--disable-dev-shm-usage",
                 "--no-first-run",
             ])
             .args(["--window-size=1300,800", "--remote-debugging-port=0"])

@@ -107,15 +107,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         ),
     }
 
-    let console = match args.console {
-        Some(addr) => {
-            let console =
-                super::console::Console::start(addr, super::console::map_json(&scenario))?;
-            eprintln!("console: {}", console.url);
-            Some(console)
-        }
-        None => None,
-    };
+    let console = super::console::Console::open(args.console, &scenario)?;
 
     let mut recording = match (&args.mcap, args.live) {
         (None, None) => None,

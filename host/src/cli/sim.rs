@@ -103,15 +103,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
             .expect("a valid template")
             .progress_chars("=> "),
     );
-    let console = match args.console {
-        Some(addr) => {
-            let console =
-                super::console::Console::start(addr, super::console::map_json(&scenario))?;
-            eprintln!("console: {}", console.url);
-            Some(console)
-        }
-        None => None,
-    };
+    let console = super::console::Console::open(args.console, &scenario)?;
     let mut live = match args.live {
         Some(addr) => Some(super::record::LiveRecording::create(
             None,

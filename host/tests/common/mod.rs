@@ -2,7 +2,17 @@
 #![allow(dead_code)]
 
 use std::path::Path;
-use std::process::Command;
+use std::process::{Child, Command};
+
+/// A child process killed when dropped (a failing test leaves nothing running).
+pub struct Killed(pub Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
 
 /// `basestation decode FILE` with the fleet key `key_hex`: one JSON value per frame.
 pub fn decode(path: &Path, key_hex: &str) -> Vec<serde_json::Value> {

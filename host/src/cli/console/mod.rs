@@ -56,6 +56,19 @@ impl Console {
         })
     }
 
+    /// [`Console::start`] when `addr` is given, saying where on standard error.
+    pub fn open(
+        addr: Option<SocketAddr>,
+        scenario: &base_station::scenario::Scenario,
+    ) -> anyhow::Result<Option<Self>> {
+        let Some(addr) = addr else {
+            return Ok(None);
+        };
+        let console = Self::start(addr, map_json(scenario))?;
+        eprintln!("console: {}", console.url);
+        Ok(Some(console))
+    }
+
     /// The fleet as the page shows it now.
     pub fn publish(&self, snapshot: &Value) {
         if let Ok(mut s) = self.snapshot.lock() {
