@@ -23,6 +23,12 @@ use crate::world::World;
 /// The frame every position is in: the site's metric frame.
 pub const FRAME: &str = "site";
 
+/// The formation's shape when it changes: `wide`, `to_line`, `line`, `to_wide`.
+#[derive(foxglove::Encode)]
+struct FormationShape {
+    shape: String,
+}
+
 /// What a robot's state channel carries (plottable in Foxglove's Plot panel).
 #[derive(foxglove::Encode)]
 struct RobotState {
@@ -283,6 +289,46 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
             t,
         );
         count("/robots");
+    }
+
+    // The planned route, each time the station planned one; the shape, each time it changed.
+    let routes = ctx.channel_builder("/route").build::<SceneUpdate>();
+    for (t_us, points) in &world.routes {
+        let mut e = SceneEntity {
+            timestamp: stamp(t_us * 1000),
+            frame_id: FRAME.into(),
+            id: "route".into(),
+            ..Default::default()
+        };
+        e.lines.push(LinePrimitive {
+            r#type: line_primitive::Type::LineStrip as i32,
+            thickness: 0.05,
+            points: points.iter().map(|p| point(p.x, p.y)).collect(),
+            color: color(0.1, 0.5, 0.95),
+            ..Default::default()
+        });
+        routes.log_with_time(
+            &SceneUpdate {
+                entities: vec![e],
+                ..Default::default()
+            },
+            t_us * 1000,
+        );
+        count("/route");
+    }
+    let shapes = ctx.channel_builder("/formation").build::<FormationShape>();
+    let mut shape = "";
+    for s in &world.recorder.samples {
+        if s.shape != shape {
+            shape = s.shape;
+            shapes.log_with_time(
+                &FormationShape {
+                    shape: shape.into(),
+                },
+                nanos(s.t),
+            );
+            count("/formation");
+        }
     }
 
     let events = events_channel(&ctx);

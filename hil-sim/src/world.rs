@@ -260,6 +260,8 @@ pub struct World {
     base_inbox: Vec<u8>,
     /// Published fixes not yet taken: (robot, fix stamped with the world's clock, ms).
     published_fixes: Vec<(u16, PoseFixSample)>,
+    /// Each route the station planned, when it was first seen (µs): for the recording.
+    pub routes: Vec<(u64, Vec<DVec2>)>,
     /// The next route point the true leader has to pass (judging arrival without the
     /// station's planner).
     next_route_point: usize,
@@ -376,6 +378,7 @@ impl World {
             base_inbox: Vec::new(),
             published_fixes: Vec::new(),
             next_route_point: 0,
+            routes: Vec::new(),
             map,
             station,
             radio,
@@ -585,6 +588,11 @@ impl World {
             self.station.step(base_ms);
             let out = self.station.take_outbox();
             self.transmit(0, &out);
+            if let Some(route) = self.station.planner().route() {
+                if self.routes.last().is_none_or(|(_, r)| *r != route.points) {
+                    self.routes.push((t, route.points.clone()));
+                }
+            }
         }
 
         // Robots: each boots at its phase and runs a control period every 100 ms of its

@@ -99,6 +99,16 @@ fn basestation_sim_writes_report_and_figure() {
         assert_eq!(count[&format!("/robot_{id}/state")].1, samples);
     }
     assert_eq!(count["/events"], ("foxglove.Log".to_string(), events));
+    // The route as planned (at least once), the shape at the start and at each change's
+    // two ends (to the line, line, back to the wide shape, wide).
+    assert!(count["/route"].1 >= 1, "{:?}", count["/route"]);
+    let changes = r["transformations"].as_array().unwrap().len() as u64;
+    assert_eq!(
+        count["/formation"].1,
+        1 + 2 * changes,
+        "{:?}",
+        count["/formation"]
+    );
     assert!(events > 0);
     // Stamped with the simulated clock.
     let end_ns = (r["sim_time_s"].as_f64().unwrap() * 1e9) as u64;
