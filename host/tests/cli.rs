@@ -282,6 +282,21 @@ fn run_over_udp_challenges_every_robot() {
         .map(|l| l["to"].to_string())
         .collect();
     assert_eq!(recorded.len(), 3, "{recorded:?}");
+
+    // Each robot's link health, once a second: none linked (nobody answered).
+    let bytes = std::fs::read(&recording).unwrap();
+    let links: Vec<_> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .filter(|m| m.channel.topic.ends_with("/link"))
+        .map(|m| m.channel.topic.clone())
+        .collect();
+    for id in 0..3 {
+        assert!(
+            links.contains(&format!("/robot_{id}/link")),
+            "no link health of robot {id}: {links:?}"
+        );
+    }
 }
 
 #[test]

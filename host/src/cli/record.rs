@@ -1,7 +1,8 @@
 //! `run --mcap FILE` / `--live [ADDR]`: the run recorded as MCAP and/or served live over
 //! the Foxglove WebSocket protocol, from the same log calls (the same channels as a
 //! simulation's recording where the station knows them): the radio bytes both ways, the
-//! base station's events, each robot's pose as its telemetry reports it. `sim --realtime
+//! base station's events, each robot's pose as its telemetry reports it and its link's
+//! health once a second. `sim --realtime
 //! --live` serves the same. Timestamps: the caller's clock (the wall clock in `run`, the
 //! simulated one in `sim`).
 
@@ -21,6 +22,17 @@ use foxglove::{
 };
 use hil_sim::recording::{events_channel, log_event, log_radio, pose, radio_channel, stamp, FRAME};
 
+/// One robot's link as the station sees it (`/robot_N/link`, plottable).
+#[derive(foxglove::Encode)]
+struct LinkHealth {
+    linked: bool,
+    /// Since the robot was last heard, ms (−1: never).
+    last_heard_ms: i64,
+    accepted: u32,
+    lost: u32,
+    rejected: u32,
+}
+
 pub struct LiveRecording {
     _ctx: Arc<Context>,
     writer: Option<McapWriterHandle<BufWriter<std::fs::File>>>,
@@ -28,6 +40,9 @@ pub struct LiveRecording {
     radio: Arc<RawChannel>,
     events: Channel<Log>,
     poses: BTreeMap<u16, (Channel<PoseInFrame>, u32)>,
+    links: BTreeMap<u16, Channel<LinkHealth>>,
+    /// The station's clock at the last link health logged, ms.
+    links_logged_ms: Option<u32>,
     events_logged: usize,
 }
 
@@ -78,6 +93,16 @@ impl LiveRecording {
         };
         let radio = radio_channel(&ctx).map_err(anyhow::Error::msg)?;
         let events = events_channel(&ctx);
+        let robots: Vec<u16> = robots.into_iter().collect();
+        let links = robots
+            .iter()
+            .map(|id| {
+                let ch = ctx
+                    .channel_builder(format!("/robot_{id}/link"))
+                    .build::<LinkHealth>();
+                (*id, ch)
+            })
+            .collect();
         let poses = robots
             .into_iter()
             .map(|id| {
@@ -94,6 +119,8 @@ impl LiveRecording {
             radio,
             events,
             poses,
+            links,
+            links_logged_ms: None,
             events_logged: 0,
         })
     }
@@ -105,8 +132,34 @@ impl LiveRecording {
         }
     }
 
-    /// What the station learnt since the last call, at `t`: new events, new telemetry poses.
-    pub fn station(&mut self, station: &BaseStation, t: u64) {
+    /// What the station learnt since the last call, at `t` (its clock `now_ms`): new
+    /// events, new telemetry poses, and each robot's link health once a second.
+    pub fn station(&mut self, station: &BaseStation, now_ms: u32, t: u64) {
+        if self
+            .links_logged_ms
+            .is_none_or(|last| now_ms.wrapping_sub(last) >= 1000)
+        {
+            self.links_logged_ms = Some(now_ms);
+            for peer in station.link().peers() {
+                let protocol::Address::Robot(id) = peer.address else {
+                    continue;
+                };
+                if let Some(channel) = self.links.get(&id) {
+                    channel.log_with_time(
+                        &LinkHealth {
+                            linked: peer.is_linked(),
+                            last_heard_ms: peer
+                                .last_rx_ms
+                                .map_or(-1, |r| now_ms.wrapping_sub(r) as i64),
+                            accepted: peer.accepted,
+                            lost: peer.lost,
+                            rejected: peer.rejects.total(),
+                        },
+                        t,
+                    );
+                }
+            }
+        }
         let leader = station.config().leader;
         for e in &station.events()[self.events_logged..] {
             let (_, name, robot) = e.describe(leader);

@@ -179,7 +179,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         transport.send(&out);
         if let Some(r) = recording.as_mut() {
             r.radio("base", &out, now_ns());
-            r.station(&station, now_ns());
+            r.station(&station, now_ms, now_ns());
         }
         if now_ms / 1000 != last_report {
             last_report = now_ms / 1000;

@@ -138,7 +138,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
             }
             live_sent = world.transmitted.len();
             if world.t_us.is_multiple_of(100_000) {
-                live.station(&world.station, world.t_us * 1000);
+                live.station(&world.station, world.base_ms(), world.t_us * 1000);
             }
         }
     });
