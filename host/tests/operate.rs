@@ -534,3 +534,72 @@ fn nmea_fixes_over_a_pty_bring_the_fleet_through_the_passage() {
         );
     }
 }
+
+/// NMEA over TCP, as from a receiver's network port: the station connects to each
+/// receiver (here the test, relaying the simulated receivers' sentences), reads lines,
+/// and forwards fixes; a broken line on the stream is counted, not forwarded.
+#[test]
+fn nmea_over_tcp_is_read_and_forwarded() {
+    use std::io::Write;
+    use std::net::{TcpListener, UdpSocket};
+    let site = Site::new("nmea-tcp");
+    let scenario = site.path("short-passage.toml");
+    let scenario = scenario.to_str().unwrap();
+    let mut publish = Vec::new();
+    let mut sources = Vec::new();
+    for id in 0..3 {
+        let udp = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let tcp = TcpListener::bind("127.0.0.1:0").unwrap();
+        publish.push(format!("nmea:{id}={}", udp.local_addr().unwrap()));
+        sources.push(format!("{id}=tcp:{}", tcp.local_addr().unwrap()));
+        // The receiver's network port: what arrives by UDP goes out on the TCP stream.
+        std::thread::spawn(move || {
+            let (mut stream, _) = tcp.accept().unwrap();
+            stream
+                .write_all(b"$GPGGA,this is not a sentence*00\r\n")
+                .unwrap();
+            let mut buf = [0u8; 2048];
+            while let Ok(n) = udp.recv(&mut buf) {
+                if stream.write_all(&buf[..n]).is_err() {
+                    return;
+                }
+            }
+        });
+    }
+    let mut args = vec!["--duration", "20"];
+    for p in &publish {
+        args.extend(["--publish-fixes", p]);
+    }
+    let (mut robots, report, _) = robots_over_udp(&site, scenario, &args);
+    let at = robots.address();
+    let run_report = site.path("run.json");
+    let mut args = vec![
+        "run",
+        scenario,
+        "--udp",
+        &at,
+        "--bind",
+        "127.0.0.1:0",
+        "--duration",
+        "18",
+    ];
+    args.extend(["--report", run_report.to_str().unwrap()]);
+    for s in &sources {
+        args.extend(["--nmea", s]);
+    }
+    Process::start(&site, &args).finish(Duration::from_secs(40));
+    robots.finish(Duration::from_secs(30));
+
+    let run = json(&run_report);
+    for id in 0..3 {
+        let c = &run["localization"][format!("nmea robot {id}")];
+        println!("robot {id} over TCP: {c}");
+        assert!(c["fixes"].as_u64().unwrap() > 100, "{c}");
+        assert_eq!(c["malformed"], 1, "{c}");
+    }
+    assert!(
+        events(&run).iter().all(|e| e.1 != "localization_lost"),
+        "{run}"
+    );
+    assert_eq!(json(&report)["collisions"], 0);
+}
