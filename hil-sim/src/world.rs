@@ -262,6 +262,8 @@ pub struct World {
     published_fixes: Vec<(u16, PoseFixSample)>,
     /// Each route the station planned, when it was first seen (µs): for the recording.
     pub routes: Vec<(u64, Vec<DVec2>)>,
+    /// Each robot's link health as the station saw it, once a second (µs): for the recording.
+    pub links: Vec<(u64, Vec<(u16, crate::recording::LinkHealth)>)>,
     /// The next route point the true leader has to pass (judging arrival without the
     /// station's planner).
     next_route_point: usize,
@@ -379,6 +381,7 @@ impl World {
             published_fixes: Vec::new(),
             next_route_point: 0,
             routes: Vec::new(),
+            links: Vec::new(),
             map,
             station,
             radio,
@@ -592,6 +595,10 @@ impl World {
                 if self.routes.last().is_none_or(|(_, r)| *r != route.points) {
                     self.routes.push((t, route.points.clone()));
                 }
+            }
+            if t.is_multiple_of(1_000_000) {
+                self.links
+                    .push((t, crate::recording::link_health(&self.station, base_ms)));
             }
         }
 

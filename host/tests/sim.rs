@@ -102,6 +102,14 @@ fn basestation_sim_writes_report_and_figure() {
     // The route as planned (at least once), the shape at the start and at each change's
     // two ends (to the line, line, back to the wide shape, wide).
     assert!(count["/route"].1 >= 1, "{:?}", count["/route"]);
+    // Each robot's link health once a second.
+    for id in 0..3 {
+        let links = count[&format!("/robot_{id}/link")].1;
+        assert!(
+            links + 1 >= r["sim_time_s"].as_f64().unwrap() as u64,
+            "{links}"
+        );
+    }
     let changes = r["transformations"].as_array().unwrap().len() as u64;
     assert_eq!(
         count["/formation"].1,

@@ -20,18 +20,10 @@ use foxglove::{
     Channel, Context, McapWriter, McapWriterHandle, RawChannel, WebSocketServer,
     WebSocketServerHandle,
 };
-use hil_sim::recording::{events_channel, log_event, log_radio, pose, radio_channel, stamp, FRAME};
-
-/// One robot's link as the station sees it (`/robot_N/link`, plottable).
-#[derive(foxglove::Encode)]
-struct LinkHealth {
-    linked: bool,
-    /// Since the robot was last heard, ms (−1: never).
-    last_heard_ms: i64,
-    accepted: u32,
-    lost: u32,
-    rejected: u32,
-}
+use hil_sim::recording::{
+    events_channel, link_health, log_event, log_radio, pose, radio_channel, stamp, LinkHealth,
+    FRAME,
+};
 
 pub struct LiveRecording {
     _ctx: Arc<Context>,
@@ -140,23 +132,9 @@ impl LiveRecording {
             .is_none_or(|last| now_ms.wrapping_sub(last) >= 1000)
         {
             self.links_logged_ms = Some(now_ms);
-            for peer in station.link().peers() {
-                let protocol::Address::Robot(id) = peer.address else {
-                    continue;
-                };
+            for (id, health) in link_health(station, now_ms) {
                 if let Some(channel) = self.links.get(&id) {
-                    channel.log_with_time(
-                        &LinkHealth {
-                            linked: peer.is_linked(),
-                            last_heard_ms: peer
-                                .last_rx_ms
-                                .map_or(-1, |r| now_ms.wrapping_sub(r) as i64),
-                            accepted: peer.accepted,
-                            lost: peer.lost,
-                            rejected: peer.rejects.total(),
-                        },
-                        t,
-                    );
+                    channel.log_with_time(&health, t);
                 }
             }
         }
