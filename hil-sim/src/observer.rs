@@ -13,7 +13,7 @@
 
 use std::collections::BTreeMap;
 
-use base_station::formation::{smoothstep, Reason, Target, Transformation};
+use base_station::formation::{smoothstep, transition_blend, Reason, Target, Transformation};
 use protocol::frame::{self, Address};
 use protocol::messages::RobotMode;
 use protocol::{FrameDecoder, Message};
@@ -94,8 +94,7 @@ impl AirObserver {
                 let current = self.transition.map(|t| t.1);
                 if let Some(to) = moving.filter(|to| current != Some(*to)) {
                     // The first step of a new transition: when did the station switch?
-                    let end = if to == Target::Line { 1.0 } else { 0.0 };
-                    let done = ((blend - self.heard) / (end - self.heard)).clamp(0.0, 1.0);
+                    let done = ((blend - self.heard) / (to.blend() - self.heard)).clamp(0.0, 1.0);
                     let start_s = t_s - inverse_smoothstep(done) * self.duration;
                     self.transition = Some((self.heard, to, start_s));
                     self.transformations.push(Transformation {
@@ -110,8 +109,7 @@ impl AirObserver {
                 // Each state of the transition tells its start again; the 8-bit blend tells it
                 // best mid-way, where the curve is steep.
                 if let Some((from, to, start_s)) = &mut self.transition {
-                    let end = if *to == Target::Line { 1.0 } else { 0.0 };
-                    let done = (blend - *from) / (end - *from);
+                    let done = (blend - *from) / (to.blend() - *from);
                     if (0.1..=0.9).contains(&done) {
                         *start_s = t_s - inverse_smoothstep(done) * self.duration;
                         if let Some(last) = self.transformations.last_mut() {
@@ -146,9 +144,7 @@ impl FleetView for AirObserver {
     fn blend(&self, t_us: u64) -> f64 {
         match self.transition {
             Some((from, to, start_s)) => {
-                let end = if to == Target::Line { 1.0 } else { 0.0 };
-                let x = (t_us as f64 / 1e6 - start_s) / self.duration;
-                from + (end - from) * smoothstep(x)
+                transition_blend(from, to, t_us as f64 / 1e6 - start_s, self.duration)
             }
             None => self.heard,
         }

@@ -538,7 +538,7 @@ impl World {
         let t = self.t_us;
         let now_ms = (t / 1000) as u32;
         // The base station's own clock: since it (re)started.
-        let base_ms = ((t - self.base_epoch_us) / 1000) as u32;
+        let base_ms = self.base_ms();
 
         // Radio arrivals: the base station takes its bytes at once; each robot gets its
         // own at its next step (this one, if it is booted).

@@ -63,6 +63,16 @@ pub enum Target {
     Line,
 }
 
+impl Target {
+    /// The blend this shape rests at: 0 wide, 1 line.
+    pub fn blend(self) -> f64 {
+        match self {
+            Target::Wide => 0.0,
+            Target::Line => 1.0,
+        }
+    }
+}
+
 /// Why the shape changed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Reason {
@@ -161,6 +171,12 @@ const HYSTERESIS: f64 = 0.3;
 /// The wide shape returns only with this much wide way ahead beyond the lookahead and
 /// the formation's length, m.
 const REOPEN_AHEAD: f64 = 2.0;
+
+/// The blend `elapsed_s` into a change of shape lasting `duration_s`, from blend `from`
+/// to the shape `to`.
+pub fn transition_blend(from: f64, to: Target, elapsed_s: f64, duration_s: f64) -> f64 {
+    from + (to.blend() - from) * smoothstep(elapsed_s / duration_s)
+}
 
 /// How a transition moves the blend: from 0 to 1 as x does, flat at both ends.
 pub fn smoothstep(x: f64) -> f64 {
@@ -344,11 +360,7 @@ impl FormationManager {
         let Some(t0) = self.transition_start else {
             return self.blend;
         };
-        let end = match self.target {
-            Target::Wide => 0.0,
-            Target::Line => 1.0,
-        };
-        self.from_blend + (end - self.from_blend) * smoothstep((now_s - t0) / self.duration)
+        transition_blend(self.from_blend, self.target, now_s - t0, self.duration)
     }
 
     fn switch(&mut self, to: Target, now_s: f64, reason: Reason) {

@@ -401,13 +401,9 @@ impl FixPublisher {
 
     /// Sends `fixes` (stamped with the world's clock, ms, which started at
     /// `epoch_unix_ms`). A datagram that cannot go is the source's loss, not an error.
-    pub fn publish(
-        &mut self,
-        fixes: &[(u16, PoseFixSample)],
-        epoch_unix_ms: u64,
-    ) -> anyhow::Result<()> {
+    pub fn publish(&self, fixes: &[(u16, PoseFixSample)], epoch_unix_ms: u64) {
         let Some(socket) = &self.socket else {
-            return Ok(());
+            return;
         };
         let mut feed = String::new();
         for (robot, sample) in fixes {
@@ -430,6 +426,5 @@ impl FixPublisher {
                 let _ = socket.send_to(feed.as_bytes(), to);
             }
         }
-        Ok(())
     }
 }

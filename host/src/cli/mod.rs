@@ -68,6 +68,29 @@ pub fn unix_ms() -> anyhow::Result<u64> {
         .as_millis() as u64)
 }
 
+/// Creates the directory `path` goes in, if it names one.
+pub fn create_parent(path: &Path) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+/// A run's report as JSON (`sim`, `robots`).
+pub fn write_report(report: &hil_sim::report::Report, path: &Path) -> anyhow::Result<()> {
+    std::fs::write(path, serde_json::to_string_pretty(report)? + "\n")
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A run's CSV trace (`sim --trace`, `robots --trace`).
+pub fn write_trace(world: &hil_sim::world::World, path: &Path) -> anyhow::Result<()> {
+    let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    hil_sim::trace::write_csv(&world.recorder, &roles, std::io::BufWriter::new(file))
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
 /// Where the fleet key comes from. Never from the binary: a real run without one fails.
 #[derive(Args, Debug, Clone)]
 pub struct KeyArgs {

@@ -51,9 +51,6 @@ pub struct RobotsArgs {
     /// 0183 over UDP for robot ID; repeat per robot). See docs/operating.md#localization.
     #[arg(long = "publish-fixes", value_name = "KIND:ADDR")]
     pub publish_fixes: Vec<PublishArg>,
-    /// The clock of the published fixes lags this much, s (to test a stale source).
-    #[arg(long, default_value_t = 0.0, hide = true)]
-    pub fix_delay_s: f64,
     /// Stop publishing fixes after this many seconds (a localization source that fails).
     #[arg(long, value_name = "S")]
     pub fixes_stop_at: Option<f64>,
@@ -178,7 +175,7 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
         options.fixes = FixPath::Published;
     }
     let settle_s = options.settle_s;
-    let mut publisher = FixPublisher::open(&args.publish_fixes, &scenario)?;
+    let publisher = FixPublisher::open(&args.publish_fixes, &scenario)?;
     let mut world = World::new(scenario, options).context("cannot start the robots")?;
     let mut air = if args.pty {
         Air::open_pty()?
@@ -212,8 +209,7 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
         let t_s = world.t_us as f64 / 1e6;
         let fixes = world.take_published_fixes();
         if args.fixes_stop_at.is_none_or(|stop| t_s < stop) {
-            let lag_ms = (args.fix_delay_s * 1000.0) as u64;
-            publisher.publish(&fixes, epoch_unix_ms.saturating_sub(lag_ms))?;
+            publisher.publish(&fixes, epoch_unix_ms);
         }
         let ahead = Duration::from_micros(world.t_us).saturating_sub(wall.elapsed());
         std::thread::sleep(ahead);
@@ -222,17 +218,11 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     let path = args
         .report
         .unwrap_or_else(|| PathBuf::from(format!("out/{name}.robots.json")));
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
-        .with_context(|| format!("cannot write {}", path.display()))?;
+    super::create_parent(&path)?;
+    super::write_report(&report, &path)?;
     if let Some(path) = &args.trace {
-        let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
-        let file = std::fs::File::create(path)
-            .with_context(|| format!("cannot create {}", path.display()))?;
-        hil_sim::trace::write_csv(&world.recorder, &roles, std::io::BufWriter::new(file))
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        super::create_parent(path)?;
+        super::write_trace(&world, path)?;
     }
     eprintln!(
         "robots: {:.1} s, goal {}, {} contacts; report {}",

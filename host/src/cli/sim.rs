@@ -166,22 +166,13 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     .into_iter()
     .flatten()
     {
-        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create {}", dir.display()))?;
-        }
+        super::create_parent(p)?;
     }
-    let json = serde_json::to_string_pretty(&report)?;
-    std::fs::write(&report_path, json + "\n")
-        .with_context(|| format!("cannot write {}", report_path.display()))?;
+    super::write_report(&report, &report_path)?;
     hil_sim::plot::write_svg(&world, &report, &plot_path)
         .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", plot_path.display()))?;
     if let Some(path) = &args.trace {
-        let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
-        let file = std::fs::File::create(path)
-            .with_context(|| format!("cannot create {}", path.display()))?;
-        hil_sim::trace::write_csv(&world.recorder, &roles, std::io::BufWriter::new(file))
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        super::write_trace(&world, path)?;
     }
     hil_sim::recording::write_mcap(&world, &report, &mcap_path).map_err(anyhow::Error::msg)?;
     print_table(&report, &report_path, &plot_path, &mcap_path);

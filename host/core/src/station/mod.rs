@@ -85,6 +85,16 @@ impl OperatorCommand {
             OperatorCommand::Resume => "resume",
         }
     }
+
+    /// The frame that carries it to every robot.
+    fn message(self) -> Message {
+        let reason = OPERATOR_REASON;
+        match self {
+            OperatorCommand::Stop => Message::Stop(Stop { reason }),
+            OperatorCommand::EmergencyStop => Message::EmergencyStop(EmergencyStop { reason }),
+            OperatorCommand::Resume => Message::Resume(Resume { reason }),
+        }
+    }
 }
 
 /// The `reason` of the frames an operator's command sends.
@@ -239,8 +249,11 @@ impl BaseStation {
     /// From now on the robots' fixes come from a localization source through
     /// [`BaseStation::forward_fix`], and their age is watched (`[localization]` limits).
     pub fn watch_fixes(&mut self, now_ms: u32) {
-        let robots = std::iter::once(self.cfg.leader).chain(self.cfg.followers.iter().copied());
-        self.fix_watch = Some(FixWatch::new(self.cfg.fixes, robots, now_ms));
+        self.fix_watch = Some(FixWatch::new(
+            self.cfg.fixes,
+            self.robots.keys().copied(),
+            now_ms,
+        ));
     }
 
     /// A fix of `robot` from the localization source, valid at `valid_at_ms` (station
@@ -254,10 +267,10 @@ impl BaseStation {
         valid_at_ms: u32,
         now_ms: u32,
     ) -> Result<(), NotForwarded> {
-        let watch = self.fix_watch.get_or_insert_with(|| {
-            let robots = std::iter::once(self.cfg.leader).chain(self.cfg.followers.iter().copied());
-            FixWatch::new(self.cfg.fixes, robots, now_ms)
-        });
+        let robots = self.robots.keys().copied();
+        let watch = self
+            .fix_watch
+            .get_or_insert_with(|| FixWatch::new(self.cfg.fixes, robots, now_ms));
         match watch.admit(robot, now_ms) {
             None => return Err(NotForwarded::UnknownRobot),
             Some(false) => return Err(NotForwarded::RateLimited),
@@ -493,15 +506,7 @@ impl BaseStation {
         self.check_fixes(now_ms);
         if let Some(hold) = self.operator_hold {
             // Every period, not once: a robot that missed it (a lost frame) gets the next.
-            let message = match hold {
-                OperatorCommand::EmergencyStop => Message::EmergencyStop(EmergencyStop {
-                    reason: OPERATOR_REASON,
-                }),
-                _ => Message::Stop(Stop {
-                    reason: OPERATOR_REASON,
-                }),
-            };
-            self.send(Address::Broadcast, now_ms, &message);
+            self.send(Address::Broadcast, now_ms, &hold.message());
             return;
         }
         if self.resumes_left > 0 {
@@ -509,9 +514,7 @@ impl BaseStation {
             self.send(
                 Address::Broadcast,
                 now_ms,
-                &Message::Resume(Resume {
-                    reason: OPERATOR_REASON,
-                }),
+                &OperatorCommand::Resume.message(),
             );
         }
         if self.halted || self.fix_watch.as_ref().is_some_and(FixWatch::halted) {
@@ -745,13 +748,7 @@ impl BaseStation {
                 self.resumes_left = 0;
             }
         }
-        let reason = OPERATOR_REASON;
-        let message = match command {
-            OperatorCommand::Stop => Message::Stop(Stop { reason }),
-            OperatorCommand::EmergencyStop => Message::EmergencyStop(EmergencyStop { reason }),
-            OperatorCommand::Resume => Message::Resume(Resume { reason }),
-        };
-        self.send(Address::Broadcast, now_ms, &message);
+        self.send(Address::Broadcast, now_ms, &command.message());
     }
 
     /// The operator's Stop or emergency stop in force, if any.

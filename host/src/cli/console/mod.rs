@@ -14,7 +14,6 @@ use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 
 use anyhow::Context;
-use base_station::planner::PlanPose;
 use base_station::station::{BaseStation, OperatorCommand};
 use serde_json::{json, Value};
 use tiny_http::{Header, Method, Response, Server};
@@ -204,10 +203,7 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         .map(|l| {
             station
                 .formation()
-                .slot_points(PlanPose {
-                    position: l.pose.position,
-                    heading: l.pose.heading,
-                })
+                .slot_points(l.pose)
                 .iter()
                 .map(|p| [p.x, p.y])
                 .collect()
