@@ -20,6 +20,9 @@ use serde::Serialize;
 
 use crate::plant::Body;
 
+/// Samples for the figure, the trace and the report: 10 Hz.
+pub const SAMPLE_PERIOD_US: u64 = 100_000;
+
 /// A robot as the recorder sees it: who it is and its body (the world's robots implement
 /// it, so the recorder reads them where they are, at every physics step).
 pub trait Tracked {
@@ -236,7 +239,7 @@ impl Recorder {
         if let Some(l) = leader {
             self.path.record(DVec2::new(l.x, l.y));
         }
-        if !t_us.is_multiple_of(100_000) {
+        if !t_us.is_multiple_of(SAMPLE_PERIOD_US) {
             return;
         }
         self.sample(t_us, robots, leader, view, near);

@@ -6,9 +6,10 @@ use std::collections::BTreeMap;
 
 use base_station::formation::{Target, Transformation};
 use base_station::scenario::{Role, Scenario};
+use glam::DVec2;
 use serde::Serialize;
 
-use crate::metrics::{Recorder, Sample};
+use crate::metrics::{Recorder, Sample, SAMPLE_PERIOD_US};
 
 pub const SCHEMA_VERSION: u32 = 2;
 
@@ -48,6 +49,9 @@ pub struct RobotReport {
     /// Followers: max error after their join while the formation changes shape (and 3 s
     /// after); null without a transformation after the join.
     pub max_tracking_error_transforming_m: Option<f64>,
+    /// Mean |ω| on straight legs (see [`straight_legs`]); followers after their join. Null
+    /// when the run had no straight leg.
+    pub straight_avg_abs_omega_radps: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -83,6 +87,8 @@ pub struct Report {
     pub min_robot_separation_m: f64,
     /// The first sample with every follower under 0.1 m at once.
     pub convergence_time_s: Option<f64>,
+    /// Time the samples spent on straight legs (what `straight_avg_abs_omega_radps` averages).
+    pub straight_leg_time_s: f64,
     pub robots: Vec<RobotReport>,
     pub transformations: Vec<TransformationReport>,
     pub link: LinkReport,
@@ -137,6 +143,61 @@ fn quantile(mut values: Vec<f64>, q: f64) -> Option<f64> {
     Some(values[rank - 1])
 }
 
+/// A straight leg: the leader's path from the formation's length + 1 m behind it to 1 m
+/// ahead of it (where it drives next) keeps within this of the chord, m.
+pub const STRAIGHT_WITHIN_M: f64 = 0.05;
+/// The least speed of the leader on a straight leg, m/s.
+const STRAIGHT_MIN_SPEED: f64 = 0.1;
+
+/// Which samples are on a straight leg: the leader's driven path over the whole formation's
+/// length behind it and 1 m ahead is straight (within [`STRAIGHT_WITHIN_M`]), the leader
+/// moves, and the shape is settled (not changing) over that stretch. Where the leader
+/// itself wiggles, the stretch is still straight: its wiggles count against it.
+pub fn straight_legs(samples: &[Sample], leader: usize, reach: f64) -> Vec<bool> {
+    let points: Vec<DVec2> = samples
+        .iter()
+        .map(|s| DVec2::new(s.robots[leader].x, s.robots[leader].y))
+        .collect();
+    let mut arc = Vec::with_capacity(points.len());
+    let mut total = 0.0;
+    for (i, p) in points.iter().enumerate() {
+        if i > 0 {
+            total += (*p - points[i - 1]).length();
+        }
+        arc.push(total);
+    }
+    let (behind, ahead) = (reach + 1.0, 1.0);
+    let (mut from, mut to) = (0, 0);
+    (0..samples.len())
+        .map(|i| {
+            while arc[from] < arc[i] - behind {
+                from += 1;
+            }
+            while to + 1 < arc.len() && arc[to] < arc[i] + ahead {
+                to += 1;
+            }
+            let long_enough = arc[i] - arc[from] >= behind - 0.2 && arc[to] - arc[i] >= ahead - 0.2;
+            if !long_enough || samples[i].robots[leader].v < STRAIGHT_MIN_SPEED {
+                return false;
+            }
+            let settled = samples[from..=to]
+                .iter()
+                .all(|s| matches!(s.shape, "wide" | "line"));
+            let (a, b) = (points[from], points[to]);
+            let chord = (b - a).normalize_or_zero();
+            settled
+                && points[from..=to]
+                    .iter()
+                    .all(|p| (*p - a).perp_dot(chord).abs() <= STRAIGHT_WITHIN_M)
+        })
+        .collect()
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    (n > 0).then(|| sum / n as f64)
+}
+
 /// What the run measured, besides the link and the station's events.
 pub struct RunFacts<'a> {
     pub scenario: &'a Scenario,
@@ -175,6 +236,19 @@ pub fn build_report(
         })
         .collect();
     let in_busy = |t: f64| busy.iter().any(|(a, b)| t >= *a && t <= *b);
+    let spec = scenario.formation_spec();
+    let reach = spec
+        .wide_slots()
+        .into_iter()
+        .chain(spec.line_slots())
+        .map(|(l, _)| l)
+        .fold(0.0, f64::max);
+    let straight = match facts.roles.iter().position(|(_, r)| *r == Role::Leader) {
+        Some(leader) => straight_legs(&rec.samples, leader, reach),
+        None => vec![false; rec.samples.len()],
+    };
+    let straight_leg_time_s =
+        straight.iter().filter(|s| **s).count() as f64 * SAMPLE_PERIOD_US as f64 / 1e6;
     let moving_until = facts.time_to_goal_s.unwrap_or(facts.sim_time_s);
     let robots = facts
         .roles
@@ -199,8 +273,19 @@ pub fn build_report(
                 p95_tracking_error_m: None,
                 time_within_0_1m_fraction: None,
                 max_tracking_error_transforming_m: None,
+                straight_avg_abs_omega_radps: None,
+            };
+            let straight_omega = |since: f64| {
+                mean(
+                    rec.samples
+                        .iter()
+                        .zip(&straight)
+                        .filter(|(s, on)| **on && s.t >= since)
+                        .map(|(s, _)| s.robots[i].omega.abs()),
+                )
             };
             if *role != Role::Follower {
+                report.straight_avg_abs_omega_radps = straight_omega(0.0);
                 return report;
             }
             let errors: Vec<(&Sample, f64)> = rec
@@ -218,6 +303,7 @@ pub fn build_report(
                 .copied()
                 .collect();
             report.joined_at_s = joined;
+            report.straight_avg_abs_omega_radps = joined.and_then(straight_omega);
             report.max_tracking_error_m = if joined.is_some() {
                 max(after.iter().map(|(_, e)| *e))
             } else {
@@ -250,6 +336,7 @@ pub fn build_report(
         min_obstacle_clearance_m: rec.min_clearance,
         min_robot_separation_m: rec.min_separation,
         convergence_time_s: convergence,
+        straight_leg_time_s,
         robots,
         transformations,
         link,

@@ -2,7 +2,8 @@
 //! streets with pinches and bends, a bin on the start line, scattered starts, traps,
 //! alleys down to 1.3 m, 5- and 7-follower V, maps with no way). Every map with a way:
 //! goal reached, 0 contacts, every follower's max tracking error after its join ≤ 0.35 m,
-//! at most two shape changes per narrow section of the leader's path. Every map without
+//! mean |ω| on straight legs ≤ 0.05 rad/s, at most two shape changes per narrow section
+//! of the leader's path. Every map without
 //! one: refused up front, naming the waypoint. Obstacles the map does not hold are sensed
 //! and routed round (a `replanned` event).
 //!
@@ -82,8 +83,14 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
         .filter(|x| x.role == "follower")
         .map(|x| x.joined_at_s.unwrap_or(f64::INFINITY))
         .fold(0.0, f64::max);
+    let jitter = r
+        .robots
+        .iter()
+        .filter(|x| x.role == "follower")
+        .filter_map(|x| x.straight_avg_abs_omega_radps)
+        .fold(0.0, f64::max);
     let line = format!(
-        "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m changes {changes} sections {sections}",
+        "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} changes {changes} sections {sections}",
         g.name,
         r.time_to_goal_s.map_or("never".into(), |t| format!("{t:.1}")),
         r.collisions,
@@ -99,6 +106,9 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
     }
     if worst > 0.35 {
         bad.push(format!("max tracking error {worst:.3} m"));
+    }
+    if jitter > common::STRAIGHT_OMEGA_MAX {
+        bad.push(format!("followers turn {jitter:.3} rad/s on straight legs"));
     }
     if changes > 2 * sections {
         bad.push(format!(

@@ -120,7 +120,7 @@ impl RobotConfig {
         period_ms: 100,
         in_formation_below: 0.10,
         joining_above: 0.30,
-        fix_gain: 0.25,
+        fix_gain: 0.05,
         fix_gate: 0.5,
         proximity_stop: 0.15,
         proximity_gain: 1.0,

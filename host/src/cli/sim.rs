@@ -250,6 +250,14 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Pat
         "0.60 / 0.59 / 0.61",
     );
     row(
+        "average |ω| on straight legs (rad/s)",
+        r.robots
+            .iter()
+            .map(|x| num(x.straight_avg_abs_omega_radps))
+            .collect(),
+        "",
+    );
+    row(
         "max tracking error after join (m)",
         r.robots
             .iter()

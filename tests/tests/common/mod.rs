@@ -4,7 +4,7 @@
 pub mod generate;
 
 use base_station::scenario::Scenario;
-use hil_sim::report::Report;
+use hil_sim::report::{Report, RobotReport};
 use hil_sim::run::simulate;
 use hil_sim::world::{SimOptions, World};
 
@@ -41,6 +41,22 @@ pub fn assert_paper_bounds(r: &Report) {
         assert!(
             stable <= 0.1,
             "{name}: follower {} stable tracking error {stable}",
+            robot.id
+        );
+        assert_smooth(name, robot);
+    }
+}
+
+/// Issue 10: a follower's mean |ω| on straight legs is at most this, rad/s.
+pub const STRAIGHT_OMEGA_MAX: f64 = 0.05;
+
+/// A follower's turn rate on straight legs (where the run had any) within
+/// [`STRAIGHT_OMEGA_MAX`].
+pub fn assert_smooth(name: &str, robot: &RobotReport) {
+    if let Some(w) = robot.straight_avg_abs_omega_radps {
+        assert!(
+            w <= STRAIGHT_OMEGA_MAX,
+            "{name}: follower {} turns {w:.3} rad/s on average on straight legs",
             robot.id
         );
     }
