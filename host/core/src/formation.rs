@@ -18,9 +18,10 @@
 //!   `REOPEN_AHEAD` (a short wide stretch between two pinches is not worth two changes),
 //!   and the line has been held for `min_dwell_s` (dwell in time). So a narrow section
 //!   costs one change into the line and one back, whatever the planner does meanwhile.
-//! - While the slots move, the leader slows to `TRANSFORM_SPEED` of its speed: the
-//!   followers' slot points move up to 1.9 m relative to the leader, and the followers'
-//!   speed is bounded.
+//! - While the slots move into the line, the leader slows to `TRANSFORM_SPEED` of its
+//!   speed: the rear slot points move forward up to 1.9 m relative to the leader, and the
+//!   followers' speed is bounded. Back to the wide shape it keeps its pace (the slots
+//!   fall back: see `speed_factor`).
 //! - **Smooth**: the blend (0 wide … 1 line) follows a smoothstep over `transition_s`, so
 //!   the followers' slot points never jump; longer when a slot moves far, so that none
 //!   moves faster than a follower can drive (`transition_duration`).
@@ -289,13 +290,18 @@ impl FormationManager {
         false
     }
 
-    /// The leader's speed factor: slower while the slots move and for `SETTLE_S` after,
-    /// while the followers close the last gap to their new slots.
+    /// The leader's speed factor: slower while the slots move into the line and for
+    /// `SETTLE_S` after, while the followers close the last gap to their new slots. Into
+    /// the line the rear slots move forward relative to the leader, so their followers
+    /// must outrun it. Back to the wide shape the slots fall back and out to the sides: a
+    /// slowed leader would make a slot retreat in the world, which a differential-drive
+    /// follower can only follow by turning round (`paper-passage` seed 5: 1.5 rad/s at
+    /// 0.02 m/s, a 5.9 s change; at full speed 3.5 s), so the leader keeps its pace.
     pub fn speed_factor(&self, now_s: f64) -> f64 {
         let settling = self
             .events
             .last()
-            .is_some_and(|e| now_s < e.start_s + self.duration + SETTLE_S);
+            .is_some_and(|e| e.to == Target::Line && now_s < e.start_s + self.duration + SETTLE_S);
         if settling {
             TRANSFORM_SPEED
         } else {

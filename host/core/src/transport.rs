@@ -23,6 +23,10 @@ impl Serial {
             .timeout(Duration::from_millis(10))
             .open()
             .map_err(io::Error::other)?;
+        // What the port holds from before we opened it is stale: a robot's handshake
+        // answered seconds late would set its clock offset off by half that wait.
+        port.clear(serialport::ClearBuffer::Input)
+            .map_err(io::Error::other)?;
         Ok(Self { port })
     }
 }
