@@ -1,12 +1,15 @@
-//! What recording costs: the wall time of writing a run's MCAP (zstd chunks) against the
-//! wall time of simulating it, and the file's size, for `paper-obstacles` and an hour of
-//! sweeping an empty lot. `cargo bench -p hil-sim --bench recording` (prints a table;
-//! medians of 5 runs each).
+//! What recording costs: the wall time of a simulation recorded as `basestation sim`
+//! records (the MCAP written on its own thread while the simulation runs) against the
+//! same simulation unrecorded, the wall time of writing the MCAP after the run (the
+//! writer's own work), and the file's size, for `paper-obstacles` and an hour of sweeping
+//! an empty lot. `cargo bench -p hil-sim --bench recording` (prints a table; medians of 5
+//! runs each).
 
 use std::time::Instant;
 
 use base_station::scenario::Scenario;
-use hil_sim::run::simulate;
+use hil_sim::recording::Recording;
+use hil_sim::run::{simulate, simulate_with};
 use hil_sim::world::SimOptions;
 
 fn paper_obstacles() -> Scenario {
@@ -52,27 +55,49 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    println!("| run | simulated | simulate (wall) | write MCAP (wall) | recording / simulation | MCAP size |");
-    println!("| --- | --- | --- | --- | --- | --- |");
+    println!("| run | simulated | simulate (wall) | simulate, recording as `sim` does (wall) | recording's cost | writing after the run (wall) | MCAP size |");
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
     let dir = std::env::temp_dir();
     for scenario in [paper_obstacles(), an_hour_on_a_lot()] {
-        let (mut sims, mut writes, mut size, mut sim_s) = (Vec::new(), Vec::new(), 0, 0.0);
+        let path = dir.join(format!("{}-bench.mcap", scenario.name));
+        let (mut sims, mut streamed, mut writes, mut size, mut sim_s) =
+            (Vec::new(), Vec::new(), Vec::new(), 0, 0.0);
         for _ in 0..5 {
             let t = Instant::now();
             let (report, world) = simulate(scenario.clone(), SimOptions::new(1)).unwrap();
             sims.push(t.elapsed().as_secs_f64());
-            let path = dir.join(format!("{}-bench.mcap", scenario.name));
+            sim_s = report.sim_time_s;
+
+            // As `basestation sim` records: handed over once per simulated second, written
+            // on the writer's thread while the simulation goes on.
+            let t = Instant::now();
+            let mut recording = None;
+            let (report, world2) =
+                simulate_with(
+                    scenario.clone(),
+                    SimOptions::new(1),
+                    |w| match &mut recording {
+                        None => recording = Some(Recording::create(w, &path).unwrap()),
+                        Some(r) if w.t_us.is_multiple_of(1_000_000) => r.feed(w),
+                        Some(_) => {}
+                    },
+                )
+                .unwrap();
+            recording.unwrap().finish(&world2, &report).unwrap();
+            streamed.push(t.elapsed().as_secs_f64());
+
             let t = Instant::now();
             hil_sim::recording::write_mcap(&world, &report, &path).unwrap();
             writes.push(t.elapsed().as_secs_f64());
             size = std::fs::metadata(&path).unwrap().len();
-            sim_s = report.sim_time_s;
         }
-        let (sim, write) = (median(sims), median(writes));
+        let (sim, streamed, write) = (median(sims), median(streamed), median(writes));
         println!(
-            "| {} | {sim_s:.0} s | {:.0} ms | {:.0} ms | {:.0} % | {:.1} MB |",
+            "| {} | {sim_s:.0} s | {:.0} ms | {:.0} ms | {:+.0} % | {:.0} ms ({:.0} %) | {:.1} MB |",
             scenario.name,
             sim * 1e3,
+            streamed * 1e3,
+            (streamed / sim - 1.0) * 100.0,
             write * 1e3,
             write / sim * 100.0,
             size as f64 / 1e6

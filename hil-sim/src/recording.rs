@@ -3,20 +3,27 @@
 //! points), each robot's pose, speeds and tracking error (plottable), the base station's
 //! events as log messages, and the raw radio bytes every node sent (`/radio`, JSON, which
 //! `basestation decode` reads). Timestamps are the simulated clock (nanoseconds from
-//! the run's start). Written after the run from what the recorder kept, through a context
-//! of its own, so runs recorded side by side (tests) never mix.
+//! the run's start). Written while the run goes on ([`Recording`]: `sim` hands it what is
+//! new once per simulated second; encoding and compression run on a thread of its own) or
+//! after it ([`write_mcap`]), through a context of its own, so runs recorded side by side
+//! (tests) never mix.
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{mpsc, Arc};
 
 use base_station::geometry::Obstacle;
 use foxglove::messages::{
     line_primitive, log, ArrowPrimitive, Color, CylinderPrimitive, LinePrimitive, Log, Point3,
     Pose, PoseInFrame, Quaternion, SceneEntity, SceneUpdate, SpherePrimitive, Timestamp, Vector3,
 };
-use foxglove::{Channel, Context, McapWriter, PartialMetadata, RawChannel, Schema};
+use foxglove::{
+    Channel, Context, McapWriteOptions, McapWriter, PartialMetadata, RawChannel, Schema,
+};
 
+use glam::DVec2;
+
+use crate::metrics::Sample;
 use crate::report::Report;
 use crate::world::World;
 
@@ -106,9 +113,18 @@ pub fn radio_channel(ctx: &Arc<Context>) -> Result<Arc<RawChannel>, String> {
 
 /// Logs what `from` put on the air at `t_ns`.
 pub fn log_radio(channel: &RawChannel, from: &str, bytes: &[u8], t_ns: u64) {
-    let message = serde_json::json!({ "from": from, "hex": hex::encode(bytes) }).to_string();
+    // Written directly (no JSON value in between: this is the busiest channel); `from`
+    // is a sender's name, never anything that needs escaping.
+    let mut message = Vec::with_capacity(24 + from.len() + 2 * bytes.len());
+    message.extend_from_slice(br#"{"from":""#);
+    message.extend_from_slice(from.as_bytes());
+    message.extend_from_slice(br#"","hex":""#);
+    let start = message.len();
+    message.resize(start + 2 * bytes.len(), 0);
+    let _ = hex::encode_to_slice(bytes, &mut message[start..]);
+    message.extend_from_slice(br#""}"#);
     channel.log_with_meta(
-        message.as_bytes(),
+        &message,
         PartialMetadata {
             log_time: Some(t_ns),
         },
@@ -215,51 +231,239 @@ fn map_entity(world: &World) -> SceneEntity {
     e
 }
 
-/// Writes the run to `path`; returns how many messages each topic got.
+/// Writes the run to `path` after it ran; returns how many messages each topic got.
 pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts, String> {
-    let ctx: Arc<Context> = Context::new();
-    let file = std::fs::File::create(path)
-        .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
-    let mcap = McapWriter::new()
-        .context(&ctx)
-        .create(std::io::BufWriter::new(file))
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    let mut counts = Counts::new();
-    let mut count = |topic: &str| *counts.entry(topic.to_string()).or_default() += 1;
+    Recording::create(world, path)?.finish(world, report)
+}
 
-    let map = ctx.channel_builder("/map").build::<SceneUpdate>();
-    map.log_with_time(
-        &SceneUpdate {
-            entities: vec![map_entity(world)],
-            ..Default::default()
-        },
-        0u64,
-    );
-    count("/map");
+/// A part of the run on its way to the writer's thread.
+enum Part {
+    Samples(Vec<Sample>),
+    Radio(Vec<(u64, String, Vec<u8>)>),
+    Routes(Vec<(u64, Vec<DVec2>)>),
+    Links(Vec<(u64, Vec<(u16, LinkHealth)>)>),
+    Events(Vec<(String, Option<u16>, f64)>),
+}
 
-    let scene = ctx.channel_builder("/robots").build::<SceneUpdate>();
-    // Per robot: its pose channel and its state channel.
-    let channels: Vec<_> = world
-        .robots
-        .iter()
-        .map(|r| {
-            let topic = |what: &str| format!("/robot_{}/{what}", r.id);
-            (
-                ctx.channel_builder(topic("pose")).build::<PoseInFrame>(),
-                ctx.channel_builder(topic("state")).build::<RobotState>(),
-            )
+/// Parts in flight to the writer at most; a simulation faster than its writer waits.
+const PARTS_IN_FLIGHT: usize = 64;
+
+/// A recording written while the run goes on, on a thread of its own: the simulation
+/// hands over what is new ([`Recording::feed`]) and goes on while it is encoded and
+/// compressed beside it.
+pub struct Recording {
+    parts: Option<mpsc::SyncSender<Part>>,
+    writer: Option<std::thread::JoinHandle<Result<Counts, String>>>,
+    path: std::path::PathBuf,
+    /// How much of each of the world's records was handed over.
+    fed: (usize, usize, usize, usize),
+}
+
+impl Recording {
+    /// Opens `path`, writes the site map and starts the writer.
+    pub fn create(world: &World, path: &Path) -> Result<Self, String> {
+        let ctx: Arc<Context> = Context::new();
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+        // zstd's fastest level: the writer must keep up with a simulation at thousands
+        // of times real time (an hour's file: 23.2 MB at both levels).
+        let options = McapWriteOptions::default().compression_level(1);
+        let mcap = McapWriter::with_options(options)
+            .context(&ctx)
+            .create(std::io::BufWriter::new(file))
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let mut writer = Writer::new(&ctx, world)?;
+        let map = ctx.channel_builder("/map").build::<SceneUpdate>();
+        map.log_with_time(
+            &SceneUpdate {
+                entities: vec![map_entity(world)],
+                ..Default::default()
+            },
+            0u64,
+        );
+        writer.count("/map");
+        let (parts, inbox) = mpsc::sync_channel(PARTS_IN_FLIGHT);
+        let shown = path.display().to_string();
+        let thread = std::thread::Builder::new()
+            .name("mcap writer".into())
+            .spawn(move || {
+                // The channels live as long as their context.
+                let _ctx = ctx;
+                for part in inbox {
+                    writer.write(part);
+                }
+                mcap.close()
+                    .map_err(|e| format!("cannot write {shown}: {e}"))?;
+                Ok(writer.counts)
+            })
+            .map_err(|e| format!("cannot start the recording's writer: {e}"))?;
+        Ok(Self {
+            parts: Some(parts),
+            writer: Some(thread),
+            path: path.to_path_buf(),
+            fed: (0, 0, 0, 0),
         })
-        .collect();
-    let footprint = world
-        .robots
-        .first()
-        .map_or(0.3, |r| r.body.params.footprint);
-    for s in &world.recorder.samples {
+    }
+
+    fn send(&self, part: Part) {
+        // A writer that stopped says why at `finish`.
+        if let Some(parts) = &self.parts {
+            let _ = parts.send(part);
+        }
+    }
+
+    /// Hands over what the world recorded since the last call.
+    pub fn feed(&mut self, world: &World) {
+        let (samples, radio, routes, links) = self.fed;
+        let rec = &world.recorder.samples;
+        if rec.len() > samples {
+            self.send(Part::Samples(rec[samples..].to_vec()));
+        }
+        if world.transmitted.len() > radio {
+            let sent = world.transmitted[radio..]
+                .iter()
+                .map(|(t_us, from, bytes)| (*t_us, sender_name(world, *from), bytes.clone()))
+                .collect();
+            self.send(Part::Radio(sent));
+        }
+        if world.routes.len() > routes {
+            self.send(Part::Routes(world.routes[routes..].to_vec()));
+        }
+        if world.links.len() > links {
+            self.send(Part::Links(world.links[links..].to_vec()));
+        }
+        self.fed = (
+            rec.len(),
+            world.transmitted.len(),
+            world.routes.len(),
+            world.links.len(),
+        );
+    }
+
+    /// Hands over the rest and the station's events, and waits for the file to be
+    /// written; returns how many messages each topic got.
+    pub fn finish(mut self, world: &World, report: &Report) -> Result<Counts, String> {
+        self.feed(world);
+        let events = report
+            .station_events
+            .iter()
+            .map(|e| (e.event.clone(), e.robot, e.at_s))
+            .collect();
+        self.send(Part::Events(events));
+        self.parts = None;
+        let writer = self.writer.take().expect("finished once");
+        writer
+            .join()
+            .map_err(|_| format!("the writer of {} stopped unexpectedly", self.path.display()))?
+    }
+}
+
+/// Who sent a transmission, as the radio channel names it.
+fn sender_name(world: &World, from: usize) -> String {
+    match from {
+        0 => "base".to_string(),
+        n if n <= world.robots.len() => format!("robot:{}", world.robots[n - 1].id),
+        _ => "attacker".to_string(),
+    }
+}
+
+/// The writer's channels and what it wrote, on its own thread.
+struct Writer {
+    scene: Channel<SceneUpdate>,
+    /// Per robot: its id, whether it leads, its pose and state channels.
+    robots: Vec<(u16, bool, Channel<PoseInFrame>, Channel<RobotState>)>,
+    footprint: f64,
+    routes: Channel<SceneUpdate>,
+    links: BTreeMap<u16, Channel<LinkHealth>>,
+    shapes: Channel<FormationShape>,
+    shape: &'static str,
+    events: Channel<Log>,
+    radio: Arc<RawChannel>,
+    counts: Counts,
+}
+
+impl Writer {
+    fn new(ctx: &Arc<Context>, world: &World) -> Result<Self, String> {
+        let robots = world
+            .robots
+            .iter()
+            .map(|r| {
+                let topic = |what: &str| format!("/robot_{}/{what}", r.id);
+                (
+                    r.id,
+                    r.role == base_station::scenario::Role::Leader,
+                    ctx.channel_builder(topic("pose")).build::<PoseInFrame>(),
+                    ctx.channel_builder(topic("state")).build::<RobotState>(),
+                )
+            })
+            .collect();
+        let links = world
+            .robots
+            .iter()
+            .map(|r| {
+                let ch = ctx.channel_builder(format!("/robot_{}/link", r.id)).build();
+                (r.id, ch)
+            })
+            .collect();
+        Ok(Self {
+            scene: ctx.channel_builder("/robots").build::<SceneUpdate>(),
+            robots,
+            footprint: world
+                .robots
+                .first()
+                .map_or(0.3, |r| r.body.params.footprint),
+            routes: ctx.channel_builder("/route").build::<SceneUpdate>(),
+            links,
+            shapes: ctx.channel_builder("/formation").build::<FormationShape>(),
+            shape: "",
+            events: events_channel(ctx),
+            radio: radio_channel(ctx)?,
+            counts: Counts::new(),
+        })
+    }
+
+    fn count(&mut self, topic: &str) {
+        *self.counts.entry(topic.to_string()).or_default() += 1;
+    }
+
+    fn write(&mut self, part: Part) {
+        match part {
+            Part::Samples(samples) => samples.iter().for_each(|s| self.sample(s)),
+            Part::Radio(sent) => {
+                for (t_us, from, bytes) in sent {
+                    log_radio(&self.radio, &from, &bytes, t_us * 1000);
+                    self.count(RADIO_TOPIC);
+                }
+            }
+            Part::Routes(routes) => routes.iter().for_each(|(t, r)| self.route(*t, r)),
+            Part::Links(links) => {
+                for (t_us, health) in links {
+                    for (id, h) in health {
+                        if let Some(ch) = self.links.get(&id) {
+                            ch.log_with_time(&h, t_us * 1000);
+                            let topic = ch.topic().to_string();
+                            self.count(&topic);
+                        }
+                    }
+                }
+            }
+            Part::Events(events) => {
+                for (event, robot, at_s) in events {
+                    log_event(&self.events, &event, robot, nanos(at_s));
+                    self.count(EVENTS_TOPIC);
+                }
+            }
+        }
+    }
+
+    /// One sample: the robots in the scene, each one's pose and state, the shape if it
+    /// changed.
+    fn sample(&mut self, s: &Sample) {
         let t = nanos(s.t);
-        let mut entities = Vec::new();
-        for ((r, sample), (pose_ch, state_ch)) in world.robots.iter().zip(&s.robots).zip(&channels)
-        {
-            let hue = if r.role == base_station::scenario::Role::Leader {
+        let footprint = self.footprint;
+        let mut entities = Vec::with_capacity(self.robots.len());
+        for ((id, leads, pose_ch, state_ch), sample) in self.robots.iter().zip(&s.robots) {
+            let hue = if *leads {
                 color(0.85, 0.3, 0.1)
             } else {
                 color(0.1, 0.45, 0.85)
@@ -267,7 +471,7 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
             let mut e = SceneEntity {
                 timestamp: stamp(t),
                 frame_id: FRAME.into(),
-                id: format!("robot_{}", r.id),
+                id: format!("robot_{id}"),
                 ..Default::default()
             };
             e.cylinders.push(CylinderPrimitive {
@@ -309,7 +513,6 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
                 },
                 t,
             );
-            count(pose_ch.topic());
             state_ch.log_with_time(
                 &RobotState {
                     v: sample.v,
@@ -319,21 +522,34 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
                 },
                 t,
             );
-            count(state_ch.topic());
         }
-        scene.log_with_time(
+        for (_, _, pose_ch, state_ch) in &self.robots {
+            for topic in [pose_ch.topic(), state_ch.topic()] {
+                *self.counts.entry(topic.to_string()).or_default() += 1;
+            }
+        }
+        self.scene.log_with_time(
             &SceneUpdate {
                 entities,
                 ..Default::default()
             },
             t,
         );
-        count("/robots");
+        self.count("/robots");
+        if s.shape != self.shape {
+            self.shape = s.shape;
+            self.shapes.log_with_time(
+                &FormationShape {
+                    shape: s.shape.into(),
+                },
+                t,
+            );
+            self.count("/formation");
+        }
     }
 
-    // The planned route, each time the station planned one; the shape, each time it changed.
-    let routes = ctx.channel_builder("/route").build::<SceneUpdate>();
-    for (t_us, points) in &world.routes {
+    /// A route the station planned at `t_us`: a blue line strip.
+    fn route(&mut self, t_us: u64, points: &[DVec2]) {
         let mut e = SceneEntity {
             timestamp: stamp(t_us * 1000),
             frame_id: FRAME.into(),
@@ -347,62 +563,13 @@ pub fn write_mcap(world: &World, report: &Report, path: &Path) -> Result<Counts,
             color: color(0.1, 0.5, 0.95),
             ..Default::default()
         });
-        routes.log_with_time(
+        self.routes.log_with_time(
             &SceneUpdate {
                 entities: vec![e],
                 ..Default::default()
             },
             t_us * 1000,
         );
-        count("/route");
+        self.count("/route");
     }
-    let links: BTreeMap<u16, Channel<LinkHealth>> = world
-        .robots
-        .iter()
-        .map(|r| {
-            let ch = ctx.channel_builder(format!("/robot_{}/link", r.id)).build();
-            (r.id, ch)
-        })
-        .collect();
-    for (t_us, health) in &world.links {
-        for (id, h) in health {
-            if let Some(ch) = links.get(id) {
-                ch.log_with_time(h, t_us * 1000);
-                count(ch.topic());
-            }
-        }
-    }
-    let shapes = ctx.channel_builder("/formation").build::<FormationShape>();
-    let mut shape = "";
-    for s in &world.recorder.samples {
-        if s.shape != shape {
-            shape = s.shape;
-            shapes.log_with_time(
-                &FormationShape {
-                    shape: shape.into(),
-                },
-                nanos(s.t),
-            );
-            count("/formation");
-        }
-    }
-
-    let events = events_channel(&ctx);
-    for e in &report.station_events {
-        log_event(&events, &e.event, e.robot, nanos(e.at_s));
-        count(EVENTS_TOPIC);
-    }
-    let radio = radio_channel(&ctx)?;
-    for (t_us, from, bytes) in &world.transmitted {
-        let from = match *from {
-            0 => "base".to_string(),
-            n if n <= world.robots.len() => format!("robot:{}", world.robots[n - 1].id),
-            _ => "attacker".to_string(),
-        };
-        log_radio(&radio, &from, bytes, t_us * 1000);
-        count(RADIO_TOPIC);
-    }
-    mcap.close()
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    Ok(counts)
 }

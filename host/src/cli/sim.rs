@@ -7,9 +7,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
+use hil_sim::recording::Recording;
 use hil_sim::report::Report;
 use hil_sim::run::simulate_with;
 use hil_sim::world::{Firmware, SimOptions};
+
+/// The recording is handed what is new once per simulated second.
+const FEED_EVERY_US: u64 = 1_000_000;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum FirmwareArg {
@@ -114,7 +118,18 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     };
     let mut live_sent = 0;
     let end = scenario.sim.duration_s;
+    let mcap_path = args
+        .mcap
+        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.mcap")));
+    super::create_parent(&mcap_path)?;
+    // Recorded while the simulation runs, on a thread of its own.
+    let mut recording: Option<Result<Recording, String>> = None;
     let result = simulate_with(scenario, options, |world| {
+        match &mut recording {
+            None => recording = Some(Recording::create(world, &mcap_path)),
+            Some(Ok(r)) if world.t_us.is_multiple_of(FEED_EVERY_US) => r.feed(world),
+            Some(_) => {}
+        }
         let t = world.t_us as f64 / 1e6;
         let permille = (t / end.max(1e-9) * 1000.0) as u64;
         if permille != bar.position() {
@@ -154,17 +169,9 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     let plot_path = args
         .plot
         .unwrap_or_else(|| PathBuf::from(format!("out/{name}.svg")));
-    let mcap_path = args
-        .mcap
-        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.mcap")));
-    for p in [
-        Some(&report_path),
-        Some(&plot_path),
-        Some(&mcap_path),
-        args.trace.as_ref(),
-    ]
-    .into_iter()
-    .flatten()
+    for p in [Some(&report_path), Some(&plot_path), args.trace.as_ref()]
+        .into_iter()
+        .flatten()
     {
         super::create_parent(p)?;
     }
@@ -174,7 +181,13 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.trace {
         super::write_trace(&world, path)?;
     }
-    hil_sim::recording::write_mcap(&world, &report, &mcap_path).map_err(anyhow::Error::msg)?;
+    let recording = match recording {
+        Some(r) => r,
+        None => Recording::create(&world, &mcap_path),
+    };
+    recording
+        .and_then(|r| r.finish(&world, &report))
+        .map_err(anyhow::Error::msg)?;
     print_table(&report, &report_path, &plot_path, &mcap_path);
     Ok(())
 }
