@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 
 use base_station::formation::{Target, Transformation};
+use base_station::planner::route::Route;
 use base_station::scenario::{Role, Scenario};
 use glam::DVec2;
 use serde::Serialize;
@@ -154,18 +155,13 @@ const STRAIGHT_MIN_SPEED: f64 = 0.1;
 /// moves, and the shape is settled (not changing) over that stretch. Where the leader
 /// itself wiggles, the stretch is still straight: its wiggles count against it.
 pub fn straight_legs(samples: &[Sample], leader: usize, reach: f64) -> Vec<bool> {
-    let points: Vec<DVec2> = samples
-        .iter()
-        .map(|s| DVec2::new(s.robots[leader].x, s.robots[leader].y))
-        .collect();
-    let mut arc = Vec::with_capacity(points.len());
-    let mut total = 0.0;
-    for (i, p) in points.iter().enumerate() {
-        if i > 0 {
-            total += (*p - points[i - 1]).length();
-        }
-        arc.push(total);
-    }
+    // The leader's path with its arc length at every sample.
+    let Route { points, arc } = Route::new(
+        samples
+            .iter()
+            .map(|s| DVec2::new(s.robots[leader].x, s.robots[leader].y))
+            .collect(),
+    );
     let (behind, ahead) = (reach + 1.0, 1.0);
     let (mut from, mut to) = (0, 0);
     (0..samples.len())
