@@ -603,18 +603,25 @@ impl World {
         }
 
         // Robots: each boots at its phase and runs a control period every 100 ms of its
-        // own clock after that. The radio bytes that arrived since its last period are
-        // handed over first (as its UART would have buffered them): one step per period
-        // keeps the firmware lockstep to 10 round trips per robot-second.
+        // own clock after that. Radio bytes are handed over in the physics step they
+        // arrive in, with or without a control period, as the firmware's radio task takes
+        // them as they come: a handshake's round trip (the clock offset) and a state's age
+        // are measured at arrival, not at the next period (which put the offset up to half
+        // a period off whenever an answer came just after a period).
         let due: Vec<bool> = self
             .robots
             .iter()
             .map(|r| t >= r.phase_us + PERIOD_US && (t - r.phase_us) % PERIOD_US < step_us)
             .collect();
+        let hearing: Vec<bool> = self
+            .robots
+            .iter()
+            .map(|r| t >= r.phase_us && !r.inbox.is_empty())
+            .collect();
         let grid = due.iter().any(|d| *d).then(|| self.robot_grid());
         let mut stepping = Vec::new();
-        for i in (0..self.robots.len()).filter(|i| due[*i]) {
-            let sensors = {
+        for i in (0..self.robots.len()).filter(|i| due[*i] || hearing[*i]) {
+            let sensors = due[i].then(|| {
                 let proximity = self.proximity(i, grid.as_ref().expect("built when due"));
                 let r = &mut self.robots[i];
                 let mut newest = None;
@@ -622,15 +629,15 @@ impl World {
                     newest = r.fixes.pop_front().map(|f| f.1);
                 }
                 let phase_ms = (r.phase_us / 1000) as u32;
-                Some(Sensors {
+                Sensors {
                     ticks: r.body.ticks(),
                     pose_fix: newest.map(|f| PoseFixSample {
                         time_ms: f.time_ms.wrapping_sub(phase_ms),
                         ..f
                     }),
                     proximity,
-                })
-            };
+                }
+            });
             let r = &mut self.robots[i];
             let inbox = std::mem::take(&mut r.inbox);
             r.brain

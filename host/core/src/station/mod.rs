@@ -406,6 +406,9 @@ impl BaseStation {
                     let mut buf = [0u8; MAX_WIRE];
                     if let Ok(n) = self.link.answer(from, nonce, now_ms, &mut buf) {
                         self.outbox.extend_from_slice(&buf[..n]);
+                        // The robot verifies our frames from this answer on: its slots go
+                        // out at the next step (sent before, they were refused).
+                        self.last_slots_ms = None;
                     }
                 }
                 Ok(Event::Linked { peer }) => {

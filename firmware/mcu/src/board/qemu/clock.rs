@@ -20,11 +20,14 @@ impl embassy_time_driver::Driver for SimClock {
 
     fn schedule_wake(&self, at: u64, waker: &Waker) {
         critical_section::with(|cs| {
-            let now = self.now.borrow(cs).get();
-            let mut queue = self.queue.borrow(cs).borrow_mut();
-            queue.schedule_wake(at, waker);
-            // Wakes anything already due.
-            queue.next_expiration(now);
+            if at <= self.now.borrow(cs).get() {
+                // Due already: wake this one alone. Waking the queue would also run the
+                // timers [`set`] made due (the control period) before the step's radio
+                // bytes are processed, and without its sensors.
+                waker.wake_by_ref();
+            } else {
+                self.queue.borrow(cs).borrow_mut().schedule_wake(at, waker);
+            }
         });
     }
 }
