@@ -82,6 +82,19 @@ pub struct SimOptions {
     pub settle_s: f64,
     /// A firmware brain that takes longer than this (wall clock) for a step has hung.
     pub step_timeout: std::time::Duration,
+    /// When robots take their radio bytes: at their next control period (lockstep, the
+    /// default: one firmware round trip per period), or in the physics step they arrive
+    /// in, as the firmware's radio task does (`basestation robots`: see `World::step`).
+    pub radio: RadioTaking,
+}
+
+/// When a simulated robot takes the radio bytes that reached it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RadioTaking {
+    /// At its next control period, with its sensors.
+    AtPeriod,
+    /// In the physics step they arrive in (a step without sensors between periods).
+    OnArrival,
 }
 
 impl SimOptions {
@@ -95,6 +108,7 @@ impl SimOptions {
             key: None,
             settle_s: 5.0,
             step_timeout: crate::qemu::STEP_TIMEOUT,
+            radio: RadioTaking::AtPeriod,
         }
     }
 }
@@ -603,20 +617,24 @@ impl World {
         }
 
         // Robots: each boots at its phase and runs a control period every 100 ms of its
-        // own clock after that. Radio bytes are handed over in the physics step they
-        // arrive in, with or without a control period, as the firmware's radio task takes
-        // them as they come: a handshake's round trip (the clock offset) and a state's age
-        // are measured at arrival, not at the next period (which put the offset up to half
-        // a period off whenever an answer came just after a period).
+        // own clock after that. The radio bytes that arrived since its last step are
+        // handed over first: at its next period (`AtPeriod`: one firmware round trip per
+        // period, as its UART would have buffered them), or in the physics step they arrive
+        // in (`OnArrival`), as the firmware's radio task takes them as they come. At the
+        // period, a handshake answered just after one measures its round trip a period too
+        // long and the robot's clock offset comes out up to half a period off: in `sim` the
+        // lockstep station's answers land on the period, behind a real transport they do
+        // not, so `basestation robots` takes them on arrival.
         let due: Vec<bool> = self
             .robots
             .iter()
             .map(|r| t >= r.phase_us + PERIOD_US && (t - r.phase_us) % PERIOD_US < step_us)
             .collect();
+        let on_arrival = self.options.radio == RadioTaking::OnArrival;
         let hearing: Vec<bool> = self
             .robots
             .iter()
-            .map(|r| t >= r.phase_us && !r.inbox.is_empty())
+            .map(|r| on_arrival && t >= r.phase_us && !r.inbox.is_empty())
             .collect();
         let grid = due.iter().any(|d| *d).then(|| self.robot_grid());
         let mut stepping = Vec::new();
