@@ -344,6 +344,76 @@ pub fn build_report(
 mod tests {
     use super::*;
 
+    /// The leader at 0.4 m/s along `path(t)`, one sample per 0.1 s.
+    fn samples(
+        path: impl Fn(f64) -> (f64, f64),
+        shape: impl Fn(f64) -> &'static str,
+    ) -> Vec<Sample> {
+        (0..400)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let (x, y) = path(t);
+                Sample {
+                    t,
+                    robots: vec![crate::metrics::RobotSample {
+                        x,
+                        y,
+                        heading: 0.0,
+                        v: 0.4,
+                        omega: 0.0,
+                        slot: None,
+                        error: None,
+                        mode: None,
+                    }],
+                    blend: 0.0,
+                    shape: shape(t),
+                    near_obstacle: false,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn straight_legs_are_straight_settled_stretches_of_the_leaders_path() {
+        let wide = |_| "wide";
+        // A straight line: straight once the formation's length (3 m + 1 m) lies behind,
+        // until 1 m before the end.
+        let line = straight_legs(&samples(|t| (0.4 * t, 0.0), wide), 0, 3.0);
+        assert!(!line[5] && line[150] && !line[399]);
+        // A 5 m circle: never (its sagitta over 5 m is 0.6 m).
+        let r = 5.0;
+        let circle = straight_legs(
+            &samples(
+                |t| (r * (0.4 * t / r).sin(), r * (1.0 - (0.4 * t / r).cos())),
+                wide,
+            ),
+            0,
+            3.0,
+        );
+        assert!(circle.iter().all(|s| !s));
+        // A wiggle of ±2 cm still counts (the leader's own wiggles count against it; the
+        // chord's ends wiggle too), ±10 cm does not; nor does a stretch in which the shape
+        // changes.
+        let wiggle = |a: f64| move |t: f64| (0.4 * t, a * (t * 3.0).sin());
+        assert!(straight_legs(&samples(wiggle(0.02), wide), 0, 3.0)[150]);
+        assert!(!straight_legs(&samples(wiggle(0.1), wide), 0, 3.0)[150]);
+        let changing = straight_legs(
+            &samples(
+                |t| (0.4 * t, 0.0),
+                |t| {
+                    if (14.0..16.0).contains(&t) {
+                        "to_line"
+                    } else {
+                        "wide"
+                    }
+                },
+            ),
+            0,
+            3.0,
+        );
+        assert!(!changing[150] && changing[300]);
+    }
+
     #[test]
     fn quantile_is_nearest_rank() {
         let v: Vec<f64> = (1..=100).map(f64::from).collect();
