@@ -14,8 +14,9 @@ use std::sync::{mpsc, Arc};
 
 use base_station::geometry::Obstacle;
 use foxglove::messages::{
-    line_primitive, log, ArrowPrimitive, Color, CylinderPrimitive, LinePrimitive, Log, Point3,
-    Pose, PoseInFrame, Quaternion, SceneEntity, SceneUpdate, SpherePrimitive, Timestamp, Vector3,
+    line_primitive, log, ArrowPrimitive, Color, CylinderPrimitive, FrameTransform, FrameTransforms,
+    LinePrimitive, Log, Point3, Pose, PoseInFrame, Quaternion, SceneEntity, SceneUpdate,
+    SpherePrimitive, Timestamp, Vector3,
 };
 use foxglove::{
     Channel, Context, McapWriteOptions, McapWriter, PartialMetadata, RawChannel, Schema,
@@ -175,16 +176,21 @@ fn point(x: f64, y: f64) -> Point3 {
 
 /// A pose in the plane at height `z`, turned by `heading` about the vertical.
 pub fn pose(x: f64, y: f64, z: f64, heading: f64) -> Option<Pose> {
-    let h = 0.5 * heading;
     Some(Pose {
         position: Some(Vector3 { x, y, z }),
-        orientation: Some(Quaternion {
-            x: 0.0,
-            y: 0.0,
-            z: h.sin(),
-            w: h.cos(),
-        }),
+        orientation: Some(turned(heading)),
     })
+}
+
+/// A turn by `heading` about the vertical.
+fn turned(heading: f64) -> Quaternion {
+    let h = 0.5 * heading;
+    Quaternion {
+        x: 0.0,
+        y: 0.0,
+        z: h.sin(),
+        w: h.cos(),
+    }
 }
 
 fn color(r: f64, g: f64, b: f64) -> Option<Color> {
@@ -229,6 +235,44 @@ fn map_entity(world: &World) -> SceneEntity {
         }
     }
     e
+}
+
+/// Each robot's frame in the site frame, every sample.
+pub const TF_TOPIC: &str = "/tf";
+
+/// A robot's body in its own frame (`robot_N`), drawn once and moved by `/tf`: its
+/// footprint (leader orange, followers blue) and a heading arrow.
+fn robot_entity(id: u16, leads: bool, footprint: f64) -> SceneEntity {
+    let hue = if leads {
+        color(0.85, 0.3, 0.1)
+    } else {
+        color(0.1, 0.45, 0.85)
+    };
+    SceneEntity {
+        frame_id: format!("robot_{id}"),
+        id: format!("robot_{id}"),
+        frame_locked: true,
+        cylinders: vec![CylinderPrimitive {
+            pose: pose(0.0, 0.0, 0.15, 0.0),
+            size: Some(Vector3 {
+                x: 2.0 * footprint,
+                y: 2.0 * footprint,
+                z: 0.3,
+            }),
+            bottom_scale: 1.0,
+            top_scale: 1.0,
+            color: hue,
+        }],
+        arrows: vec![ArrowPrimitive {
+            pose: pose(0.0, 0.0, 0.35, 0.0),
+            shaft_length: footprint,
+            shaft_diameter: 0.06,
+            head_length: 0.15,
+            head_diameter: 0.15,
+            color: color(1.0, 1.0, 1.0),
+        }],
+        ..Default::default()
+    }
 }
 
 /// Writes the run to `path` after it ran; returns how many messages each topic got.
@@ -370,6 +414,9 @@ fn sender_name(world: &World, from: usize) -> String {
 /// The writer's channels and what it wrote, on its own thread.
 struct Writer {
     scene: Channel<SceneUpdate>,
+    frames: Channel<FrameTransforms>,
+    /// The robots' bodies are in the scene (drawn with the first sample).
+    drawn: bool,
     /// Per robot: its id, whether it leads, its pose and state channels.
     robots: Vec<(u16, bool, Channel<PoseInFrame>, Channel<RobotState>)>,
     footprint: f64,
@@ -407,6 +454,8 @@ impl Writer {
             .collect();
         Ok(Self {
             scene: ctx.channel_builder("/robots").build::<SceneUpdate>(),
+            frames: ctx.channel_builder(TF_TOPIC).build::<FrameTransforms>(),
+            drawn: false,
             robots,
             footprint: world
                 .robots
@@ -456,45 +505,41 @@ impl Writer {
         }
     }
 
-    /// One sample: the robots in the scene, each one's pose and state, the shape if it
-    /// changed.
+    /// One sample: each robot's frame (`/tf`), the followers' slot points (`/robots`; the
+    /// robots' bodies there once, at the first sample, locked to their frames), each
+    /// robot's pose and state, the shape if it changed.
     fn sample(&mut self, s: &Sample) {
         let t = nanos(s.t);
-        let footprint = self.footprint;
-        let mut entities = Vec::with_capacity(self.robots.len());
-        for ((id, leads, pose_ch, state_ch), sample) in self.robots.iter().zip(&s.robots) {
-            let hue = if *leads {
-                color(0.85, 0.3, 0.1)
-            } else {
-                color(0.1, 0.45, 0.85)
-            };
-            let mut e = SceneEntity {
+        let mut entities = Vec::new();
+        if !self.drawn {
+            self.drawn = true;
+            entities.extend(
+                self.robots
+                    .iter()
+                    .map(|(id, leads, ..)| robot_entity(*id, *leads, self.footprint)),
+            );
+        }
+        let mut slots = SceneEntity {
+            timestamp: stamp(t),
+            frame_id: FRAME.into(),
+            id: "slots".into(),
+            ..Default::default()
+        };
+        let mut transforms = Vec::with_capacity(self.robots.len());
+        for ((id, _, pose_ch, state_ch), sample) in self.robots.iter().zip(&s.robots) {
+            transforms.push(FrameTransform {
                 timestamp: stamp(t),
-                frame_id: FRAME.into(),
-                id: format!("robot_{id}"),
-                ..Default::default()
-            };
-            e.cylinders.push(CylinderPrimitive {
-                pose: pose(sample.x, sample.y, 0.15, sample.heading),
-                size: Some(Vector3 {
-                    x: 2.0 * footprint,
-                    y: 2.0 * footprint,
-                    z: 0.3,
+                parent_frame_id: FRAME.into(),
+                child_frame_id: format!("robot_{id}"),
+                translation: Some(Vector3 {
+                    x: sample.x,
+                    y: sample.y,
+                    z: 0.0,
                 }),
-                bottom_scale: 1.0,
-                top_scale: 1.0,
-                color: hue,
-            });
-            e.arrows.push(ArrowPrimitive {
-                pose: pose(sample.x, sample.y, 0.35, sample.heading),
-                shaft_length: footprint,
-                shaft_diameter: 0.06,
-                head_length: 0.15,
-                head_diameter: 0.15,
-                color: color(1.0, 1.0, 1.0),
+                rotation: Some(turned(sample.heading)),
             });
             if let Some((sx, sy)) = sample.slot {
-                e.spheres.push(SpherePrimitive {
+                slots.spheres.push(SpherePrimitive {
                     pose: pose(sx, sy, 0.05, 0.0),
                     size: Some(Vector3 {
                         x: 0.15,
@@ -504,7 +549,6 @@ impl Writer {
                     color: color(0.2, 0.8, 0.3),
                 });
             }
-            entities.push(e);
             pose_ch.log_with_time(
                 &PoseInFrame {
                     timestamp: stamp(t),
@@ -528,6 +572,10 @@ impl Writer {
                 *self.counts.entry(topic.to_string()).or_default() += 1;
             }
         }
+        self.frames
+            .log_with_time(&FrameTransforms { transforms }, t);
+        self.count(TF_TOPIC);
+        entities.push(slots);
         self.scene.log_with_time(
             &SceneUpdate {
                 entities,

@@ -91,6 +91,11 @@ fn basestation_sim_writes_report_and_figure() {
         count["/robots"],
         ("foxglove.SceneUpdate".to_string(), samples)
     );
+    // Every robot's frame moves with one transform message per sample.
+    assert_eq!(
+        count["/tf"],
+        ("foxglove.FrameTransforms".to_string(), samples)
+    );
     for id in 0..3 {
         assert_eq!(
             count[&format!("/robot_{id}/pose")],
