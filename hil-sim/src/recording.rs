@@ -298,7 +298,8 @@ const PARTS_IN_FLIGHT: usize = 64;
 pub struct Recording {
     parts: Option<mpsc::SyncSender<Part>>,
     writer: Option<std::thread::JoinHandle<Result<Counts, String>>>,
-    path: std::path::PathBuf,
+    /// The file, as messages name it.
+    shown: String,
     /// How much of each of the world's records was handed over.
     fed: (usize, usize, usize, usize),
 }
@@ -328,6 +329,7 @@ impl Recording {
         writer.count("/map");
         let (parts, inbox) = mpsc::sync_channel(PARTS_IN_FLIGHT);
         let shown = path.display().to_string();
+        let named = shown.clone();
         let thread = std::thread::Builder::new()
             .name("mcap writer".into())
             .spawn(move || {
@@ -337,14 +339,14 @@ impl Recording {
                     writer.write(part);
                 }
                 mcap.close()
-                    .map_err(|e| format!("cannot write {shown}: {e}"))?;
+                    .map_err(|e| format!("cannot write {named}: {e}"))?;
                 Ok(writer.counts)
             })
             .map_err(|e| format!("cannot start the recording's writer: {e}"))?;
         Ok(Self {
             parts: Some(parts),
             writer: Some(thread),
-            path: path.to_path_buf(),
+            shown,
             fed: (0, 0, 0, 0),
         })
     }
@@ -398,7 +400,7 @@ impl Recording {
         let writer = self.writer.take().expect("finished once");
         writer
             .join()
-            .map_err(|_| format!("the writer of {} stopped unexpectedly", self.path.display()))?
+            .map_err(|_| format!("the writer of {} stopped unexpectedly", self.shown))?
     }
 }
 
@@ -415,8 +417,6 @@ fn sender_name(world: &World, from: usize) -> String {
 struct Writer {
     scene: Channel<SceneUpdate>,
     frames: Channel<FrameTransforms>,
-    /// The robots' bodies are in the scene (drawn with the first sample).
-    drawn: bool,
     /// Per robot: its id, whether it leads, its pose and state channels.
     robots: Vec<(u16, bool, Channel<PoseInFrame>, Channel<RobotState>)>,
     footprint: f64,
@@ -455,7 +455,6 @@ impl Writer {
         Ok(Self {
             scene: ctx.channel_builder("/robots").build::<SceneUpdate>(),
             frames: ctx.channel_builder(TF_TOPIC).build::<FrameTransforms>(),
-            drawn: false,
             robots,
             footprint: world
                 .robots
@@ -511,8 +510,8 @@ impl Writer {
     fn sample(&mut self, s: &Sample) {
         let t = nanos(s.t);
         let mut entities = Vec::new();
-        if !self.drawn {
-            self.drawn = true;
+        // The robots' bodies go into the scene once, with its first update.
+        if !self.counts.contains_key("/robots") {
             entities.extend(
                 self.robots
                     .iter()
