@@ -133,16 +133,19 @@ fn suite_with(
     check: impl Fn(&Generated, u64) -> Result<String, String>,
 ) {
     let mut failures = Vec::new();
+    let bar = common::progress(name, seeds().count() as u64);
     for seed in seeds() {
         let g = make(seed);
         match check(&g, seed) {
-            Ok(line) => println!("ok   {line}"),
+            Ok(line) => bar.suspend(|| println!("ok   {line}")),
             Err(e) => {
-                println!("FAIL {e}");
+                bar.suspend(|| println!("FAIL {e}"));
                 failures.push(e);
             }
         }
+        bar.inc(1);
     }
+    bar.finish_and_clear();
     assert!(
         failures.is_empty(),
         "{name}: {} of {} maps failed:\n{}",

@@ -126,14 +126,19 @@ fn identical_to_native_under_cpu_load() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(20);
     let _hogs = CpuHogs::start(4);
+    let bar = common::progress("QEMU runs under load", runs);
     for run in 0..runs {
         let started = std::time::Instant::now();
         assert_identical(shipped("paper-obstacles"), 1 + run % 3);
-        println!(
-            "run {run}: identical ({:.1} s)",
-            started.elapsed().as_secs_f64()
-        );
+        bar.suspend(|| {
+            println!(
+                "run {run}: identical ({:.1} s)",
+                started.elapsed().as_secs_f64()
+            )
+        });
+        bar.inc(1);
     }
+    bar.finish_and_clear();
 }
 
 /// 20 % loss, 150 ms latency, ±50 ms jitter: frames cross and arrive late, still

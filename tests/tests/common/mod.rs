@@ -13,6 +13,24 @@ pub fn shipped(name: &str) -> Scenario {
     Scenario::load(std::path::Path::new(&path)).expect("shipped scenario loads")
 }
 
+/// A suite's progress on a terminal (stderr), nothing when stderr is not one (CI, pipes);
+/// the suites of one test binary share the terminal, a bar each.
+pub fn progress(name: &str, len: u64) -> indicatif::ProgressBar {
+    static BARS: std::sync::OnceLock<indicatif::MultiProgress> = std::sync::OnceLock::new();
+    let bar = BARS
+        .get_or_init(indicatif::MultiProgress::new)
+        .add(indicatif::ProgressBar::new(len));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {prefix} [{bar:30}] {pos}/{len} {elapsed}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(name.to_string());
+    bar
+}
+
 pub fn run(s: Scenario, seed: u64) -> (Report, World) {
     simulate(s, SimOptions::new(seed)).expect("native brains do not fail")
 }
