@@ -289,6 +289,22 @@ const PROXIMITY_RANGE: f64 = 2.0;
 /// Grid cell for robot neighbour queries, m (≥ range + two footprints).
 const CELL: f64 = 3.0;
 
+/// How much wider a side than the footprint the corridor is in which an echo slows a
+/// robot, m: it also turns.
+const SIDE_MARGIN: f64 = 0.2;
+
+/// How far a footprint of radius `fp` can drive ahead before it touches an echo `echo`
+/// metres away on a beam `beam` radians off its heading: as far as a disc `SIDE_MARGIN`
+/// wider can, plus that margin (so straight ahead, `echo − fp`). `None` when the echo is
+/// beside the corridor that disc sweeps: a robot passing a bin or driving down an alley is
+/// not slowed by what it is not driving into (a 1.3 m alley's walls slowed the last
+/// follower and made it weave).
+fn free_ahead(echo: f64, beam: f64, fp: f64) -> Option<f64> {
+    let (ahead, aside) = (echo * beam.cos(), echo * beam.sin().abs());
+    let corridor = fp + SIDE_MARGIN;
+    (aside < corridor).then(|| ahead - (corridor * corridor - aside * aside).sqrt() + SIDE_MARGIN)
+}
+
 fn cell(x: f64, y: f64) -> (i64, i64) {
     ((x / CELL).floor() as i64, (y / CELL).floor() as i64)
 }
@@ -742,8 +758,10 @@ impl World {
         grid
     }
 
-    /// The ultrasonic ring of robot `i`: free distance ahead and behind (cones of ±40°,
-    /// range `PROXIMITY_RANGE` beyond the footprint), to obstacles and other robots.
+    /// The ultrasonic ring of robot `i` as its board reports it: how far the footprint can
+    /// drive ahead (behind) before it touches what a transducer sees (five beams over
+    /// ±40°, range `PROXIMITY_RANGE` beyond the footprint; [`free_ahead`]), obstacles and
+    /// other robots.
     fn proximity(&self, i: usize, grid: &HashMap<(i64, i64), Vec<usize>>) -> [Option<f32>; 2] {
         let body = &self.robots[i].body;
         let fp = body.params.footprint;
@@ -760,17 +778,19 @@ impl World {
         let sense = |base: f64| {
             let free = [-40f64, -20.0, 0.0, 20.0, 40.0]
                 .iter()
-                .map(|deg| {
+                .filter_map(|deg| {
                     let a = base + deg.to_radians();
                     let dir = DVec2::new(a.cos(), a.sin());
                     let wall = self.map.ray_cast(p, dir, reach);
-                    neighbours
+                    let echo = neighbours
                         .iter()
                         .filter_map(|q| ray_circle(p, dir, *q, fp))
-                        .fold(wall, f64::min)
+                        .fold(wall, f64::min);
+                    (echo < reach)
+                        .then(|| free_ahead(echo, deg.to_radians(), fp))
+                        .flatten()
                 })
-                .fold(reach, f64::min)
-                - fp;
+                .fold(f64::INFINITY, f64::min);
             (free < PROXIMITY_RANGE).then_some(free.max(0.0) as f32)
         };
         [
@@ -798,5 +818,32 @@ impl World {
             .iter()
             .find(|r| r.role == Role::Leader)
             .map(|r| DVec2::new(r.body.x, r.body.y))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ring_counts_what_the_robot_drives_into() {
+        let fp = 0.3;
+        // Straight ahead: the gap in front of the footprint.
+        assert!((free_ahead(1.0, 0.0, fp).unwrap() - 0.7).abs() < 1e-12);
+        // A 1.3 m alley's wall, 0.65 m beside the centre, seen by the 40° beam: not in the way.
+        let wall = 0.65 / 40f64.to_radians().sin();
+        assert_eq!(free_ahead(wall, 40f64.to_radians(), fp), None);
+        assert_eq!(free_ahead(wall, -40f64.to_radians(), fp), None);
+        // Inside the corridor: the nearer the middle, the less room; never more than the
+        // footprint has before it touches the echo.
+        let at = |ahead: f64, aside: f64| {
+            free_ahead(ahead.hypot(aside), aside.atan2(ahead), fp).expect("in the corridor")
+        };
+        let room = [0.0, 0.1, 0.2, 0.29, 0.4, 0.49].map(|aside| at(1.0, aside));
+        assert!(room.windows(2).all(|w| w[0] < w[1]), "{room:?}");
+        for (aside, r) in [0.0, 0.1, 0.2, 0.29].iter().zip(room) {
+            let touches = 1.0 - (fp * fp - aside * aside).sqrt();
+            assert!(r <= touches + 1e-12, "{aside}: {r} > {touches}");
+        }
     }
 }
