@@ -82,19 +82,6 @@ pub struct SimOptions {
     pub settle_s: f64,
     /// A firmware brain that takes longer than this (wall clock) for a step has hung.
     pub step_timeout: std::time::Duration,
-    /// When robots take their radio bytes: at their next control period (lockstep, the
-    /// default: one firmware round trip per period), or in the physics step they arrive
-    /// in, as the firmware's radio task does (`basestation robots`: see `World::step`).
-    pub radio: RadioTaking,
-}
-
-/// When a simulated robot takes the radio bytes that reached it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RadioTaking {
-    /// At its next control period, with its sensors.
-    AtPeriod,
-    /// In the physics step they arrive in (a step without sensors between periods).
-    OnArrival,
 }
 
 impl SimOptions {
@@ -108,7 +95,6 @@ impl SimOptions {
             key: None,
             settle_s: 5.0,
             step_timeout: crate::qemu::STEP_TIMEOUT,
-            radio: RadioTaking::AtPeriod,
         }
     }
 }
@@ -633,24 +619,22 @@ impl World {
         }
 
         // Robots: each boots at its phase and runs a control period every 100 ms of its
-        // own clock after that. The radio bytes that arrived since its last step are
-        // handed over first: at its next period (`AtPeriod`: one firmware round trip per
-        // period, as its UART would have buffered them), or in the physics step they arrive
-        // in (`OnArrival`), as the firmware's radio task takes them as they come. At the
-        // period, a handshake answered just after one measures its round trip a period too
-        // long and the robot's clock offset comes out up to half a period off: in `sim` the
-        // lockstep station's answers land on the period, behind a real transport they do
-        // not, so `basestation robots` takes them on arrival.
+        // own clock after that. The radio bytes that reached it are handed over in the
+        // physics step they arrive in (a step without sensors between periods), as the
+        // firmware's radio task takes them as they come. Until 2026-12-01 `sim` handed them
+        // over at the next period: a handshake answered just after one then measured its
+        // round trip a period too long, and the robot's clock offset came out up to half a
+        // period off behind a real transport (`basestation robots`, which took them on
+        // arrival; the two now run the same).
         let due: Vec<bool> = self
             .robots
             .iter()
             .map(|r| t >= r.phase_us + PERIOD_US && (t - r.phase_us) % PERIOD_US < step_us)
             .collect();
-        let on_arrival = self.options.radio == RadioTaking::OnArrival;
         let hearing: Vec<bool> = self
             .robots
             .iter()
-            .map(|r| on_arrival && t >= r.phase_us && !r.inbox.is_empty())
+            .map(|r| t >= r.phase_us && !r.inbox.is_empty())
             .collect();
         let grid = due.iter().any(|d| *d).then(|| self.robot_grid());
         let mut stepping = Vec::new();

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use clap::Args;
-use hil_sim::world::{BaseSide, FixPath, RadioTaking, SimOptions, World};
+use hil_sim::world::{BaseSide, FixPath, SimOptions, World};
 
 use super::localization::{FixPublisher, PublishArg};
 use super::sim::FirmwareArg;
@@ -170,8 +170,6 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
     options.firmware = args.firmware.into();
     options.base = BaseSide::External;
-    // Behind a real transport, the robots take their radio bytes as the firmware does.
-    options.radio = RadioTaking::OnArrival;
     options.key = Some(Arc::new(key));
     if !args.publish_fixes.is_empty() {
         options.fixes = FixPath::Published;
