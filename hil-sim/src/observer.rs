@@ -8,10 +8,18 @@
 //! moved, the observer recovers when the switch was, and so the blend at any instant, as
 //! the station has it.
 //!
+//! A leader state is timed by the station's own stamp in its header, not by when it was
+//! heard: behind a real transport it arrives 0–100 ms late, by the pseudo-terminal, the
+//! world's 10 ms step and the station's scheduling, and timed on arrival the recovered
+//! switch came late by as much (the followers, which time it by the station's clock, then
+//! looked up to 0.08 m off in a shape change). The station's clock is mapped to the
+//! world's by the least apparent latency of its recent frames (a minimum filter, as a
+//! clock filter keeps the shortest round trip).
+//!
 //! Frames are parsed without checking their tags: the observer is the harness listening to
 //! its own simulated air, not a robot; the robots themselves verify everything.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
 use base_station::formation::{smoothstep, transition_blend, Reason, Target, Transformation};
 use protocol::frame::{self, Address};
@@ -34,7 +42,15 @@ pub struct AirObserver {
     slots: BTreeMap<usize, SlotPair>,
     modes: BTreeMap<u16, RobotMode>,
     transformations: Vec<Transformation>,
+    /// The base station's recent frames' apparent latency (heard − stamped), s: the
+    /// least is the offset of its clock to the world's.
+    latencies: VecDeque<f64>,
 }
+
+/// How many of the station's frames the clock mapping looks back on (5 s at 10 Hz and a
+/// frame or two more per period): long enough to hold an undelayed frame, short enough to
+/// follow a drift of the two clocks.
+const LATENCY_WINDOW: usize = 100;
 
 /// The x in [0, 1] where [`smoothstep`] reaches `y` (it rises monotonically).
 fn inverse_smoothstep(y: f64) -> f64 {
@@ -61,6 +77,7 @@ impl AirObserver {
             slots: BTreeMap::new(),
             modes: BTreeMap::new(),
             transformations: Vec::new(),
+            latencies: VecDeque::new(),
         }
     }
 
@@ -71,13 +88,28 @@ impl AirObserver {
         for &b in bytes {
             if let Some(Ok(raw)) = decoder.push(b) {
                 if let Ok((header, message)) = frame::parse_unverified(raw) {
-                    messages.push((header.from, message));
+                    messages.push((header.from, header.time_ms, message));
                 }
             }
         }
-        for (sender, message) in messages {
+        for (sender, stamp_ms, message) in messages {
+            let t_s = match sender {
+                Address::Base => self.station_time(stamp_ms, t_s),
+                _ => t_s,
+            };
             self.absorb(sender, message, t_s);
         }
+    }
+
+    /// When the station stamped a frame heard at `heard_s`, on the world's clock.
+    fn station_time(&mut self, stamp_ms: u32, heard_s: f64) -> f64 {
+        let stamp_s = stamp_ms as f64 / 1000.0;
+        if self.latencies.len() == LATENCY_WINDOW {
+            self.latencies.pop_front();
+        }
+        self.latencies.push_back(heard_s - stamp_s);
+        let offset = self.latencies.iter().copied().fold(f64::INFINITY, f64::min);
+        stamp_s + offset
     }
 
     fn absorb(&mut self, sender: Address, message: Message, t_s: f64) {
@@ -177,7 +209,8 @@ mod tests {
     }
 
     /// A station's transitions (3.5 s, switching to the line at 0.25 s and back at 2.0 s,
-    /// mid-way), broadcast at 10 Hz: the observer has the station's blend at any instant.
+    /// mid-way), broadcast at 10 Hz and heard up to 90 ms late: the observer has the
+    /// station's blend at any instant.
     #[test]
     fn the_blend_between_leader_states_is_the_stations() {
         let key = MasterKey::from_bytes(&[7; 32]);
@@ -199,7 +232,9 @@ mod tests {
             let n = base
                 .send(Address::Broadcast, i * 100, &leader_state(blend), &mut buf)
                 .unwrap();
-            observer.overhear(0, &buf[..n], t);
+            // Heard 0–90 ms late, as behind a pseudo-terminal and a busy scheduler.
+            let late = [0.0, 0.03, 0.09, 0.01, 0.06][i as usize % 5];
+            observer.overhear(0, &buf[..n], t + late);
             // Between this state and the next, as the station has it (to the wire's 1/255);
             // except right after a switch, which the air tells only with the next state.
             let between = t + 0.05;

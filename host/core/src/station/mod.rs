@@ -5,6 +5,7 @@
 
 mod events;
 mod fixes;
+mod smoothing;
 
 use std::collections::BTreeMap;
 
@@ -20,6 +21,7 @@ pub use events::StationEvent;
 use events::REPORTED_FAULTS;
 use fixes::FixWatch;
 pub use fixes::{FixChange, FixLimits};
+pub use smoothing::TurnRateSmoother;
 
 use crate::formation::{FormationManager, FormationSpec};
 use crate::map::Map;
@@ -155,6 +157,8 @@ pub struct BaseStation {
     last_command: (f64, f64),
     /// The leader's estimated path, oldest first, points `PATH_STEP` apart.
     driven: std::collections::VecDeque<DVec2>,
+    /// The turn rate the followers are told, calmed where it only jitters.
+    broadcast_omega: TurnRateSmoother,
 }
 
 /// Spacing of the paths the formation manager looks along, m.
@@ -242,6 +246,7 @@ impl BaseStation {
             replans_seen: 0,
             no_route_seen: false,
             driven: std::collections::VecDeque::new(),
+            broadcast_omega: TurnRateSmoother::default(),
             last_command: (0.0, 0.0),
         }
     }
@@ -672,7 +677,8 @@ impl BaseStation {
 
     /// The pose is the leader's (measured, predicted to now); the velocity is the one it
     /// was just told to drive. The followers then start to speed up or turn when the
-    /// leader does, not a motor lag later: their own lag matches the leader's.
+    /// leader does, not a motor lag later: their own lag matches the leader's. The turn
+    /// rate is smoothed where it only jitters ([`TurnRateSmoother`]).
     fn broadcast_leader_state(
         &mut self,
         leader: &LeaderEstimate,
@@ -681,6 +687,7 @@ impl BaseStation {
         now_ms: u32,
     ) {
         let p = leader.pose;
+        let twist = (twist.0, self.broadcast_omega.step(twist.1));
         if let Ok(pose) =
             WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32)
         {
