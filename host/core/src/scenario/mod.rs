@@ -25,6 +25,15 @@ mod validate;
 
 use locate::{line_col, locate};
 
+/// How fast a slot point may move relative to the leader during a shape change, as a
+/// fraction of the robots' top speed (it sets the change's duration,
+/// `FormationSpec::transition_duration`). Back to the wide shape a follower first in line
+/// moves out 1.5 m while the leader drives on: at 0.8 it had to turn nearly sideways
+/// (1.6 rad/s at 0.1 m/s) and lagged its slot by 0.22 m in `sim`, 0.30–0.35 m in real time
+/// (the short passage of `host/tests/operate.rs`); at 0.7 (the paper's passage: 3.5 → 4 s,
+/// within issue 10's 5 s) 0.18 m and 0.21 m.
+const SLOT_SPEED_OF_MAX: f64 = 0.7;
+
 /// A scenario that could not be loaded: where, which field, why.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ScenarioError {
@@ -752,7 +761,7 @@ impl Scenario {
             min_dwell_s: f.min_dwell_s,
             lookahead: f.lookahead,
             footprint: self.robot.footprint_radius,
-            slot_speed: 0.8 * self.robot.max_speed,
+            slot_speed: SLOT_SPEED_OF_MAX * self.robot.max_speed,
         }
     }
 
