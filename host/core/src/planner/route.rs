@@ -143,12 +143,40 @@ impl ClearanceGrid {
             cap: cap as f32,
             clear: vec![f32::INFINITY; nx * ny],
         };
+        // A sparse map (the cells within `cap` of its obstacles fewer than the grid's):
+        // every clearance exact out to the cap, no transform over the whole grid.
+        let reach_cells: f64 = map
+            .obstacles()
+            .iter()
+            .map(|o| {
+                let [lo, hi] = o.bounds();
+                let size = (hi - lo) + DVec2::splat(2.0 * cap);
+                size.x * size.y / (cell * cell)
+            })
+            .sum();
+        let half_diagonal = (cell * std::f64::consts::FRAC_1_SQRT_2) as f32;
+        if reach_cells < (nx * ny) as f64 {
+            for o in map.obstacles() {
+                grid.stamp(o, cap);
+            }
+            // Beyond the band, as cautious as the transform's bound below (half a diagonal
+            // under the exact value): the routes, and the shape changes along them, stay
+            // those of dense maps (exact values let routes graze the wide formation's
+            // clearance, and a bin on the start line then cost two needless changes).
+            let (band, cap) = (band as f32, cap as f32);
+            for c in &mut grid.clear {
+                if *c > band {
+                    *c = (*c - half_diagonal).max(band);
+                }
+                *c = c.min(cap);
+            }
+            return grid;
+        }
         for o in map.obstacles() {
             grid.stamp(o, band);
         }
         // Cells a surface crosses seed the transform; beyond the band, the distance to the
         // nearest seed centre less half a diagonal is a lower bound of the true clearance.
-        let half_diagonal = (cell * std::f64::consts::FRAC_1_SQRT_2) as f32;
         let seeds: Vec<bool> = grid.clear.iter().map(|c| *c <= half_diagonal).collect();
         let limit = (cap / cell + 2.0).powi(2) as f32;
         let squared = distance_transform(&seeds, nx, ny, limit);
@@ -425,6 +453,11 @@ impl RoutePlanner {
     /// Extra cost per metre of a cell with clearance `c` (∞ when blocked).
     fn penalty(&self, c: f32) -> f32 {
         let p = &self.params;
+        // Most cells are open (the soft clearance is at least the wide one): a metre there
+        // costs a metre, without the arithmetic below on every neighbour of every step.
+        if c as f64 >= p.soft_clearance {
+            return 1.0;
+        }
         let c = c as f64;
         if c < p.hard_clearance {
             return f32::INFINITY;
@@ -516,7 +549,8 @@ impl RoutePlanner {
         // A coarse search first (each coarse cell as open as its most open fine cell, so
         // a fine way is always a coarse way), then the fine search inside a corridor
         // around the coarse route; the whole grid only when the corridor holds no way.
-        let coarse_clear = coarsen(&clear, g.nx, g.ny, COARSE);
+        let hard = self.params.hard_clearance as f32;
+        let coarse_clear = coarsen(&clear, g.nx, g.ny, COARSE, hard);
         let coarse = Lattice {
             clear: &coarse_clear,
             nx: g.nx.div_ceil(COARSE),
@@ -527,7 +561,8 @@ impl RoutePlanner {
         let found = match self.search(&coarse, to_coarse(s), to_coarse(t), None) {
             Ok(way) => {
                 let corridor = coarse.dilate(&way, CORRIDOR);
-                let inside = |k: usize| corridor[to_coarse(k)];
+                let cnx = coarse.nx;
+                let inside = |i: usize, j: usize| corridor[(j / COARSE) * cnx + i / COARSE];
                 self.search(&fine, s, t, Some(&inside))
                     .or_else(|_| self.search(&fine, s, t, None))
             }
@@ -549,14 +584,15 @@ impl RoutePlanner {
         Ok(Route::new(self.pull_strings(&points, &at)))
     }
 
-    /// A\* over `lattice` from cell `s` to `t`, through cells `inside` allows: the cells of
+    /// A\* over `lattice` from cell `s` to `t`, through the cells (column, row) `inside`
+    /// allows: the cells of
     /// the cheapest way, or the cell that came closest to `t`.
     fn search(
         &self,
         lattice: &Lattice,
         s: usize,
         t: usize,
-        inside: Option<&dyn Fn(usize) -> bool>,
+        inside: Option<&dyn Fn(usize, usize) -> bool>,
     ) -> Result<Vec<usize>, usize> {
         let Lattice {
             clear,
@@ -568,13 +604,19 @@ impl RoutePlanner {
         let entry = self.params.narrow_entry as f32;
         let (ti, tj) = ((t % nx) as i64, (t / nx) as i64);
         // Octile distance in metres: admissible and consistent, a metre costs at least 1.
-        let h = |k: usize| {
-            let di = ((k % nx) as i64 - ti).unsigned_abs() as f32;
-            let dj = ((k / nx) as i64 - tj).unsigned_abs() as f32;
+        // By column and row: a cell's index divided by a run-time `nx` costs more than
+        // the rest of the expansion.
+        let h = |i: i64, j: i64| {
+            let di = (i - ti).unsigned_abs() as f32;
+            let dj = (j - tj).unsigned_abs() as f32;
             (di.max(dj) + (std::f32::consts::SQRT_2 - 1.0) * di.min(dj)) * cell
         };
-        let mut cost = vec![f32::INFINITY; clear.len()];
-        let mut parent = vec![u32::MAX; clear.len()];
+        // Zeroed, so the allocator hands over fresh pages that only the cells the search
+        // touches fault in (a corridor search on a large grid touches few): `parent` holds
+        // a cell's parent + 1, 0 for none yet, and `cost` counts only where it is set.
+        let mut cost = vec![0f32; clear.len()];
+        let mut parent = vec![0u32; clear.len()];
+        let reached = |parent: &[u32], m: usize| m == s || parent[m] != 0;
         // A monotone queue (the heuristic is consistent, so f never falls below the last
         // popped; a rounding step below is lifted to it) keyed by the f-cost's bits:
         // non-negative floats order as their bits. Ties pop last-in first.
@@ -584,12 +626,14 @@ impl RoutePlanner {
             open.push(Reverse(f.to_bits().max(floor)), k as u32);
         };
         cost[s] = 0.0;
-        push(&mut open, h(s), s);
+        let (si, sj) = ((s % nx) as i64, (s / nx) as i64);
+        push(&mut open, h(si, sj), s);
         let mut closest = (f32::INFINITY, s);
         let (nxi, nyi) = (nx as i64, ny as i64);
         while let Some((Reverse(f), k)) = open.pop() {
             let k = k as usize;
-            let hk = h(k);
+            let (i, j) = ((k % nx) as i64, (k / nx) as i64);
+            let hk = h(i, j);
             if f32::from_bits(f) > cost[k] + hk + 1e-3 {
                 continue;
             }
@@ -599,7 +643,6 @@ impl RoutePlanner {
             if k == t {
                 break;
             }
-            let (i, j) = ((k % nx) as i64, (k / nx) as i64);
             let leaving_wide = clear[k] >= wide;
             for (di, dj, len) in NEIGHBOURS {
                 let (ni, nj) = (i + di, j + dj);
@@ -609,19 +652,21 @@ impl RoutePlanner {
                 let m = (nj * nxi + ni) as usize;
                 let c = clear[m];
                 let step = self.penalty(c);
-                if !step.is_finite() || inside.is_some_and(|allowed| !allowed(m)) {
+                if !step.is_finite()
+                    || inside.is_some_and(|allowed| !allowed(ni as usize, nj as usize))
+                {
                     continue;
                 }
                 let narrowing = if c < wide && leaving_wide { entry } else { 0.0 };
                 let ng = cost[k] + step * len * cell + narrowing;
-                if ng < cost[m] {
+                if !reached(&parent, m) || ng < cost[m] {
                     cost[m] = ng;
-                    parent[m] = k as u32;
-                    push(&mut open, ng + h(m), m);
+                    parent[m] = k as u32 + 1;
+                    push(&mut open, ng + h(ni, nj), m);
                 }
             }
         }
-        if parent[t] == u32::MAX && s != t {
+        if !reached(&parent, t) {
             return Err(closest.1);
         }
         let mut cells = vec![t];
@@ -629,7 +674,7 @@ impl RoutePlanner {
             if k == s {
                 break;
             }
-            cells.push(parent[k] as usize);
+            cells.push(parent[k] as usize - 1);
         }
         cells.reverse();
         Ok(cells)
@@ -719,18 +764,26 @@ impl Lattice<'_> {
     }
 }
 
-/// Each `f` × `f` block's largest clearance.
-fn coarsen(clear: &[f32], nx: usize, ny: usize, f: usize) -> Vec<f32> {
+/// Each `f` × `f` block's clearance for the coarse search: below `hard` (blocked) only if
+/// every cell of it is, so a fine way is always a coarse way; otherwise its least clearance
+/// (at least `hard`), so the coarse route costs a narrow line through the block as the fine
+/// search will (its largest clearance let the coarse route slip through a gap one cell
+/// thick that the fine route then paid a narrow entry for).
+fn coarsen(clear: &[f32], nx: usize, ny: usize, f: usize, hard: f32) -> Vec<f32> {
     let cnx = nx.div_ceil(f);
-    let mut out = vec![0f32; cnx * ny.div_ceil(f)];
+    let blocks = cnx * ny.div_ceil(f);
+    let (mut most, mut least) = (vec![0f32; blocks], vec![f32::INFINITY; blocks]);
     for (j, row) in clear.chunks(nx).enumerate() {
-        let out_row = &mut out[(j / f) * cnx..(j / f + 1) * cnx];
+        let at = (j / f) * cnx;
         for (i, c) in row.iter().enumerate() {
-            let o = &mut out_row[i / f];
-            *o = o.max(*c);
+            most[at + i / f] = most[at + i / f].max(*c);
+            least[at + i / f] = least[at + i / f].min(*c);
         }
     }
-    out
+    most.iter()
+        .zip(least)
+        .map(|(m, l)| if *m < hard { *m } else { l.max(hard) })
+        .collect()
 }
 
 /// The squared distance, in cells, from each cell to the nearest seed, exact below `limit`
