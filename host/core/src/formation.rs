@@ -169,6 +169,8 @@ const SETTLE_S: f64 = 1.5;
 const EXIT_MARGIN: f64 = 1.0;
 /// Extra free width asked before the wide shape returns, m.
 const HYSTERESIS: f64 = 0.3;
+/// Clearance beyond its footprint a follower needs at its wide slot, m.
+const SLOT_MARGIN: f64 = 0.1;
 /// The wide shape returns only with this much wide way ahead beyond the lookahead and
 /// the formation's length, m.
 const REOPEN_AHEAD: f64 = 2.0;
@@ -309,12 +311,35 @@ impl FormationManager {
         }
     }
 
-    /// One step. `ahead`: the path the leader will drive, from the leader on; `behind`:
-    /// the path it drove, newest first (both sampled finely, ≤ 0.25 m); `followers`:
-    /// their positions where known.
+    /// Whether, with the leader at `leader`, a wide slot point lies within `need` of an
+    /// obstacle: the follower there would touch it. The width of the way along the path
+    /// does not tell this: in a turn a V swings its rear slots out beyond it, over what
+    /// stands beside the leader's way (a 5-follower V's follower 9 m back pressed on a bin
+    /// its slot had swept into, up to 12 m off, and the leader, pacing on it, crawled).
+    /// At the leader's pose, not along the route ahead: the route's corners swing a rigid
+    /// V further than the leader's rounded turns do (checked ahead, the 2-follower dense
+    /// bin fields changed shape where no slot ever met a bin).
+    pub fn wide_slot_blocked(&self, map: &Map, leader: PlanPose, need: f64) -> bool {
+        self.wide.iter().any(|(l, phi)| {
+            let a = leader.heading + phi;
+            let slot = leader.position + DVec2::new(a.cos(), a.sin()) * *l;
+            map.clearance(slot, need) < need
+        })
+    }
+
+    /// The clearance a follower needs at its wide slot not to touch: its footprint and a
+    /// tenth of a metre.
+    pub fn slot_need(&self) -> f64 {
+        self.spec.footprint + SLOT_MARGIN
+    }
+
+    /// One step. `leader`: its pose; `ahead`: the path the leader will drive, from the
+    /// leader on; `behind`: the path it drove, newest first (both sampled finely,
+    /// ≤ 0.25 m); `followers`: their positions where known.
     pub fn step(
         &mut self,
         now_s: f64,
+        leader: PlanPose,
         ahead: &[DVec2],
         behind: &[DVec2],
         followers: &[DVec2],
@@ -325,7 +350,9 @@ impl FormationManager {
         let length = self.wide_reach().max(self.line_reach());
         match self.target {
             Target::Wide => {
-                if self.narrow_along(map, ahead, self.spec.lookahead, need_in) {
+                if self.narrow_along(map, ahead, self.spec.lookahead, need_in)
+                    || self.wide_slot_blocked(map, leader, self.slot_need())
+                {
                     self.switch(Target::Line, now_s, Reason::PassageAhead);
                 }
             }
@@ -344,6 +371,7 @@ impl FormationManager {
                         need_out,
                     )
                     && !self.narrow_along(map, behind, length + EXIT_MARGIN, need_out)
+                    && !self.wide_slot_blocked(map, leader, self.slot_need() + HYSTERESIS)
                     && !followers.iter().any(|f| self.is_narrow(map, *f, need_out));
                 if open {
                     self.switch(Target::Wide, now_s, Reason::PassageBehind);

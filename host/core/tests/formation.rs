@@ -84,7 +84,7 @@ fn drive_for(map: &Map, weave: f64, steps: usize) -> Run {
         let followers = fm.slot_points(leader);
         let before = fm.transformations().len();
         let (ahead, behind) = paths(leader, &driven);
-        fm.step(t, &ahead, &behind, &followers, map);
+        fm.step(t, leader, &ahead, &behind, &followers, map);
         if driven
             .last()
             .is_none_or(|p| (*p - leader.position).length() >= 0.25)
@@ -163,7 +163,7 @@ fn slots_move_without_jumps() {
             heading: 0.0,
         };
         let (ahead, behind) = paths(leader, &[]);
-        fm.step(t, &ahead, &behind, &fm.slot_points(leader), &map);
+        fm.step(t, leader, &ahead, &behind, &fm.slot_points(leader), &map);
         let pts = fm.slot_points(leader);
         if let Some(prev) = &last {
             for (a, b) in prev.iter().zip(&pts) {

@@ -572,9 +572,9 @@ impl BaseStation {
             .chain(self.driven.iter().rev().copied())
             .collect();
         let before = self.formation.transformations().len();
-        let blend = self
-            .formation
-            .step(now_s, &ahead, &behind, &followers, &self.world);
+        let blend =
+            self.formation
+                .step(now_s, leader.pose, &ahead, &behind, &followers, &self.world);
         if self.formation.transformations().len() > before {
             let to = self.formation.target();
             tracing::info!(?to, "formation change");
