@@ -260,6 +260,9 @@ pub struct World {
     base_inbox: Vec<u8>,
     /// Published fixes not yet taken: (robot, fix stamped with the world's clock, ms).
     published_fixes: Vec<(u16, PoseFixSample)>,
+    /// With an external base station: the leader's latest scan (hits on what the map does
+    /// not hold), not yet taken.
+    published_scan: Vec<DVec2>,
     /// Each route the station planned, when it was first seen (µs): for the recording.
     pub routes: Vec<(u64, Vec<DVec2>)>,
     /// Each robot's link health as the station saw it, once a second (µs): for the recording.
@@ -395,6 +398,7 @@ impl World {
                 .then(|| AirObserver::new(scenario.formation_spec().transition_duration())),
             base_inbox: Vec::new(),
             published_fixes: Vec::new(),
+            published_scan: Vec::new(),
             next_route_point: 0,
             routes: Vec::new(),
             links: Vec::new(),
@@ -596,6 +600,12 @@ impl World {
             }
         }
 
+        // The leader's scan at 10 Hz: for the external station to take, or into ours.
+        if t.is_multiple_of(PERIOD_US) && external {
+            if let Some(at) = self.leader_position() {
+                self.published_scan = self.scanner.scan(at, &self.map);
+            }
+        }
         // Base station at 10 Hz, with the leader's scan of the moment.
         if t.is_multiple_of(PERIOD_US) && !external {
             if let Some(at) = self.leader_position() {
@@ -729,6 +739,11 @@ impl World {
     }
 
     /// Fixes published since the last call: (robot, fix stamped with the world's clock).
+    /// The leader's latest scan (site frame), once; empty when it saw nothing unmapped.
+    pub fn take_scan(&mut self) -> Vec<DVec2> {
+        std::mem::take(&mut self.published_scan)
+    }
+
     pub fn take_published_fixes(&mut self) -> Vec<(u16, PoseFixSample)> {
         std::mem::take(&mut self.published_fixes)
     }

@@ -232,6 +232,106 @@ fn run_drives_robots_over_a_pty_through_the_passage_as_sim_does() {
     paper_passage_over("pty");
 }
 
+/// A van parked across the way, not on the station's map (`[map] unmapped`: only the
+/// simulated site has it).
+const VAN_ON_THE_WAY: &str = r#"
+name = "van-on-the-way"
+[map]
+bounds = { min = [-5.0, 0.0], max = [35.0, 20.0] }
+obstacles = []
+unmapped = [
+    { kind = "rectangle", min = [14.0, 6.5], max = [16.0, 13.5] },
+]
+[[robots]]
+id = 0
+role = "leader"
+start = { x = 4.0, y = 10.0, heading_deg = 0.0 }
+[[robots]]
+id = 1
+role = "follower"
+start = { x = 1.202, y = 11.5, heading_deg = 0.0 }
+[[robots]]
+id = 2
+role = "follower"
+start = { x = 1.202, y = 8.5, heading_deg = 0.0 }
+[formation]
+shape = "triangle"
+distance = 3.0
+angle_deg = 150.0
+[route]
+goal = [26.0, 10.0]
+[sim]
+duration_s = 90.0
+"#;
+
+/// The leader's scans reach `run` as the scan feed (here from `robots --publish-scan`, on a
+/// real site from whatever processes its lidar): the station senses the van the map does
+/// not hold, plans round it, and the fleet reaches the goal without touching it.
+#[test]
+fn run_routes_round_an_unmapped_van_from_the_scan_feed() {
+    let site = Site::new("scan");
+    let scenario = site.path("van.toml");
+    std::fs::write(&scenario, VAN_ON_THE_WAY).unwrap();
+    let scenario = scenario.to_str().unwrap();
+    let feed = format!("127.0.0.1:{}", free_udp_port());
+    let report = site.path("robots.json");
+    let mut robots = Process::start(
+        &site,
+        &[
+            "robots",
+            scenario,
+            "--udp",
+            "127.0.0.1:0",
+            "--publish-scan",
+            &feed,
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    let at = robots.address();
+    let run_report = site.path("run.json");
+    Process::start(
+        &site,
+        &[
+            "run",
+            scenario,
+            "--udp",
+            &at,
+            "--bind",
+            "127.0.0.1:0",
+            "--scan-feed",
+            &feed,
+            "--report",
+            run_report.to_str().unwrap(),
+        ],
+    )
+    .finish(Duration::from_secs(110));
+    robots.finish(Duration::from_secs(30));
+
+    let r = json(&report);
+    assert_eq!(r["goal_reached"], true, "{r}");
+    assert_eq!(r["collisions"], 0);
+    let run = json(&run_report);
+    println!(
+        "scan feed: {}, sensed {}",
+        run["scan_feed"], run["sensed_obstacles"]
+    );
+    assert!(
+        run["scan_feed"]["scans"].as_u64().unwrap() > 50,
+        "{}",
+        run["scan_feed"]
+    );
+    assert_eq!(run["scan_feed"]["malformed"], 0);
+    assert!(run["sensed_obstacles"].as_u64().unwrap() > 10);
+    let replans = run["station_events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["event"] == "replanned")
+        .count();
+    assert!(replans > 0, "never planned round the van");
+}
+
 /// A free local UDP port (bound, then released for the process under test).
 fn free_udp_port() -> u16 {
     std::net::UdpSocket::bind("127.0.0.1:0")

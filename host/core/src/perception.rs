@@ -7,6 +7,9 @@
 //! the first hit of that cell. They are never forgotten (a route planned round something
 //! stays valid), and their number is bounded: past `MAX_SENSED` new hits are dropped and
 //! counted.
+//!
+//! Where the station has no simulated scanner (`basestation run`), the scans come in as a
+//! line feed ([`parse_scan_line`]) from whatever processes the leader's lidar.
 
 use std::collections::HashSet;
 
@@ -67,9 +70,76 @@ impl Perception {
     }
 }
 
+/// Most hits one line of the scan feed may carry (a 0.25° lidar's full turn).
+pub const MAX_HITS_PER_LINE: usize = 1440;
+
+/// One line of the scan feed: `TIME_S,X_M,Y_M[,X_M,Y_M…]`, one scan's hits on obstacle
+/// surfaces in the site frame, `TIME_S` when it was taken (seconds since the Unix epoch).
+/// Blank lines and `#` comments are `Ok(None)`; what is wrong is said, field by field.
+pub fn parse_scan_line(line: &str) -> Result<Option<(f64, Vec<DVec2>)>, String> {
+    let line = line.trim();
+    if line.is_empty() || line.starts_with('#') {
+        return Ok(None);
+    }
+    let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+    if fields.len() < 3 || fields.len().is_multiple_of(2) {
+        return Err(format!(
+            "{} fields, expected TIME_S then X_M,Y_M pairs",
+            fields.len()
+        ));
+    }
+    if (fields.len() - 1) / 2 > MAX_HITS_PER_LINE {
+        return Err(format!(
+            "{} hits, at most {MAX_HITS_PER_LINE} a line",
+            (fields.len() - 1) / 2
+        ));
+    }
+    let number = |i: usize| {
+        fields[i]
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("field {}: {:?} is not a number", i + 1, fields[i]))
+    };
+    let time = number(0)?;
+    if !(0.0..=1e11).contains(&time) {
+        return Err(format!("time {time} is not seconds since 1970"));
+    }
+    let hits = (1..fields.len())
+        .step_by(2)
+        .map(|i| Ok(DVec2::new(number(i)?, number(i + 1)?)))
+        .collect::<Result<Vec<_>, String>>()?;
+    Ok(Some((time, hits)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scan_lines_parse_and_bad_ones_say_why() {
+        assert_eq!(
+            parse_scan_line("1764486000.5, 1.0,2.0, -3.5,4").unwrap(),
+            Some((
+                1764486000.5,
+                vec![DVec2::new(1.0, 2.0), DVec2::new(-3.5, 4.0)]
+            ))
+        );
+        assert_eq!(parse_scan_line("  # a comment").unwrap(), None);
+        assert_eq!(parse_scan_line("").unwrap(), None);
+        for (bad, why) in [
+            ("1764486000.5,1.0", "2 fields"),
+            ("1764486000.5,1.0,2.0,3.0", "4 fields"),
+            ("1764486000.5,1.0,north", "field 3"),
+            ("1764486000.5,inf,2.0", "field 2"),
+            ("-5,1.0,2.0", "seconds since 1970"),
+        ] {
+            let e = parse_scan_line(bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+        let long = format!("1.0{}", ",0.0,0.0".repeat(MAX_HITS_PER_LINE + 1));
+        assert!(parse_scan_line(&long).unwrap_err().contains("at most"));
+    }
 
     #[test]
     fn mapped_surfaces_are_ignored_and_new_ones_kept_once_per_cell() {

@@ -8,6 +8,7 @@ pub mod record;
 pub mod robot_config;
 pub mod robots;
 pub mod run;
+pub mod scan;
 pub mod sim;
 
 use std::path::{Path, PathBuf};

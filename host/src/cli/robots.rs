@@ -51,6 +51,10 @@ pub struct RobotsArgs {
     /// 0183 over UDP for robot ID; repeat per robot). See docs/operating.md#localization.
     #[arg(long = "publish-fixes", value_name = "KIND:ADDR")]
     pub publish_fixes: Vec<PublishArg>,
+    /// Send the leader's scans (hits on what the map does not hold, 10 Hz) as the scan
+    /// feed to this UDP address, for `run --scan-feed`.
+    #[arg(long, value_name = "ADDR")]
+    pub publish_scan: Option<std::net::SocketAddr>,
     /// Stop publishing fixes after this many seconds (a localization source that fails).
     #[arg(long, value_name = "S")]
     pub fixes_stop_at: Option<f64>,
@@ -176,6 +180,10 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     }
     let settle_s = options.settle_s;
     let publisher = FixPublisher::open(&args.publish_fixes, &scenario)?;
+    let scans = args
+        .publish_scan
+        .map(super::scan::ScanPublisher::open)
+        .transpose()?;
     let mut world = World::new(scenario, options).context("cannot start the robots")?;
     let mut air = if args.pty {
         Air::open_pty()?
@@ -210,6 +218,10 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
         let fixes = world.take_published_fixes();
         if args.fixes_stop_at.is_none_or(|stop| t_s < stop) {
             publisher.publish(&fixes, epoch_unix_ms);
+        }
+        let scan = world.take_scan();
+        if let Some(scans) = &scans {
+            scans.publish(&scan, epoch_unix_ms + world.t_us / 1000);
         }
         let ahead = Duration::from_micros(world.t_us).saturating_sub(wall.elapsed());
         std::thread::sleep(ahead);

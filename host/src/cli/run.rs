@@ -45,6 +45,11 @@ pub struct RunArgs {
     /// `ID=serial:PATH[@BAUD]`; repeat per robot. Needs `[localization] origin`.
     #[arg(long, value_name = "ID=SOURCE")]
     pub nmea: Vec<super::localization::NmeaArg>,
+    /// Read the leader's scans (the scan feed: `TIME_S,X_M,Y_M,X_M,Y_M…` per line, hits in
+    /// the site frame; docs/operating.md#obstacles-the-map-does-not-hold) from UDP
+    /// datagrams to this local address: what the map does not hold is routed round.
+    #[arg(long, value_name = "ADDR")]
+    pub scan_feed: Option<SocketAddr>,
     /// Write what the run did (station events, link and localization counts) here at the
     /// end, as JSON (docs/operating.md#the-run-report).
     #[arg(long, value_name = "FILE.json")]
@@ -107,6 +112,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         ),
     }
 
+    let mut scans = args
+        .scan_feed
+        .map(super::scan::ScanFeed::open)
+        .transpose()?;
+
     let console = super::console::Console::open(args.console, &scenario)?;
 
     let mut recording = match (&args.mcap, args.live) {
@@ -166,6 +176,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         if let Some(l) = &mut localization {
             l.poll(&mut station, start_unix_ms, now_ms);
         }
+        if let Some(feed) = &mut scans {
+            feed.poll(&mut station, start_unix_ms + now_ms as u64);
+        }
         if let Some(console) = &console {
             for command in console.commands() {
                 station.operator(command, now_ms);
@@ -209,7 +222,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         r.radio("base", &out, now_ns());
         r.close()?;
     }
-    let summary = summary(&scenario.name, &station, localization.as_ref());
+    let summary = summary(
+        &scenario.name,
+        &station,
+        localization.as_ref(),
+        scans.as_ref().map(|s| s.counts()),
+    );
     eprintln!("{}", serde_json::to_string(&summary)?);
     if let Some(path) = &args.report {
         std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
@@ -294,6 +312,7 @@ fn summary(
     scenario: &str,
     station: &BaseStation,
     localization: Option<&super::localization::Localization>,
+    scans: Option<super::scan::ScanCounts>,
 ) -> serde_json::Value {
     let leader = station.config().leader;
     let events: Vec<_> = station
@@ -321,5 +340,7 @@ fn summary(
             "rejects_by_reason": rejects,
         },
         "localization": localization.map(|l| l.counts()),
+        "scan_feed": scans,
+        "sensed_obstacles": station.perception().obstacles().len(),
     })
 }
