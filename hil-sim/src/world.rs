@@ -600,20 +600,20 @@ impl World {
             }
         }
 
-        // The leader's scan at 10 Hz: for the external station to take, or into ours.
-        if t.is_multiple_of(PERIOD_US) && external {
-            if let Some(at) = self.leader_position() {
-                self.published_scan = self.scanner.scan(at, &self.map);
+        // The leader's scan at 10 Hz: for the external station to take, or into ours,
+        // which steps with it.
+        if t.is_multiple_of(PERIOD_US) {
+            let hits = self
+                .leader_position()
+                .map(|at| self.scanner.scan(at, &self.map))
+                .unwrap_or_default();
+            if external {
+                self.published_scan = hits;
+            } else if !hits.is_empty() {
+                self.station.sense(&hits);
             }
         }
-        // Base station at 10 Hz, with the leader's scan of the moment.
         if t.is_multiple_of(PERIOD_US) && !external {
-            if let Some(at) = self.leader_position() {
-                let hits = self.scanner.scan(at, &self.map);
-                if !hits.is_empty() {
-                    self.station.sense(&hits);
-                }
-            }
             self.station.step(base_ms);
             let out = self.station.take_outbox();
             self.transmit(0, &out);
@@ -738,12 +738,12 @@ impl World {
         std::mem::take(&mut self.base_inbox)
     }
 
-    /// Fixes published since the last call: (robot, fix stamped with the world's clock).
     /// The leader's latest scan (site frame), once; empty when it saw nothing unmapped.
     pub fn take_scan(&mut self) -> Vec<DVec2> {
         std::mem::take(&mut self.published_scan)
     }
 
+    /// Fixes published since the last call: (robot, fix stamped with the world's clock).
     pub fn take_published_fixes(&mut self) -> Vec<(u16, PoseFixSample)> {
         std::mem::take(&mut self.published_fixes)
     }

@@ -123,9 +123,10 @@ impl ScanPublisher {
         if hits.is_empty() {
             return;
         }
+        use std::fmt::Write;
         let mut line = format!("{:.3}", unix_ms as f64 / 1000.0);
         for h in hits {
-            line.push_str(&format!(",{:.3},{:.3}", h.x, h.y));
+            let _ = write!(line, ",{:.3},{:.3}", h.x, h.y);
         }
         line.push('\n');
         // A lost scan is made up by the next, 100 ms later.

@@ -546,9 +546,10 @@ impl RoutePlanner {
             ny: g.ny,
             cell: g.cell as f32,
         };
-        // A coarse search first (each coarse cell as open as its most open fine cell, so
-        // a fine way is always a coarse way), then the fine search inside a corridor
-        // around the coarse route; the whole grid only when the corridor holds no way.
+        // A coarse search first (a coarse cell blocked only where all its fine cells are,
+        // so a fine way is always a coarse way; see `coarsen`), then the fine search inside
+        // a corridor around the coarse route; the whole grid only when the corridor holds
+        // no way.
         let hard = self.params.hard_clearance as f32;
         let coarse_clear = coarsen(&clear, g.nx, g.ny, COARSE, hard);
         let coarse = Lattice {
@@ -585,8 +586,7 @@ impl RoutePlanner {
     }
 
     /// A\* over `lattice` from cell `s` to `t`, through the cells (column, row) `inside`
-    /// allows: the cells of
-    /// the cheapest way, or the cell that came closest to `t`.
+    /// allows: the cells of the cheapest way, or the cell that came closest to `t`.
     fn search(
         &self,
         lattice: &Lattice,
@@ -604,8 +604,8 @@ impl RoutePlanner {
         let entry = self.params.narrow_entry as f32;
         let (ti, tj) = ((t % nx) as i64, (t / nx) as i64);
         // Octile distance in metres: admissible and consistent, a metre costs at least 1.
-        // By column and row: a cell's index divided by a run-time `nx` costs more than
-        // the rest of the expansion.
+        // By column and row, which the expansion has at hand (no division by `nx` per
+        // neighbour).
         let h = |i: i64, j: i64| {
             let di = (i - ti).unsigned_abs() as f32;
             let dj = (j - tj).unsigned_abs() as f32;
