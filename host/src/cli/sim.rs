@@ -12,9 +12,6 @@ use hil_sim::report::Report;
 use hil_sim::run::simulate_with;
 use hil_sim::world::{Firmware, SimOptions};
 
-/// The recording is handed what is new once per simulated second.
-const FEED_EVERY_US: u64 = 1_000_000;
-
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum FirmwareArg {
     /// The control core compiled for this machine.
@@ -127,7 +124,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     let result = simulate_with(scenario, options, |world| {
         match &mut recording {
             None => recording = Some(Recording::create(world, &mcap_path)),
-            Some(Ok(r)) if world.t_us.is_multiple_of(FEED_EVERY_US) => r.feed(world),
+            Some(Ok(r)) if world.t_us.is_multiple_of(Recording::FEED_EVERY_US) => r.feed(world),
             Some(_) => {}
         }
         let t = world.t_us as f64 / 1e6;
