@@ -9,7 +9,8 @@
 //! strength and never backward along the route (the route is known to be free: a
 //! repulsion that pushes the leader back out of a gap it must take is the APF's classic
 //! failure). When the leader makes no progress along the route for `stuck_window_s`
-//! although nothing holds it back (followers, a shape change), the way is blocked by
+//! although nothing holds it back (followers, a shape change, a turn toward the route
+//! that a turn on the spot could still be making), the way is blocked by
 //! something the map does not hold: the stretch ahead is marked blocked and the route is
 //! planned again (a `replanned` event). No route at all: the leader holds (`NoRoute`)
 //! and tries again every `stuck_window_s`.
@@ -49,6 +50,10 @@ use crate::geometry::{wrap_angle, Obstacle};
 use crate::map::Map;
 use apf::ApfParams;
 use route::{NoRoute, Route, RouteParams, RoutePlanner};
+
+/// A heading error beyond which the leader is turning toward the route rather than
+/// driving along it, rad (60°).
+const TURNING_AWAY: f64 = std::f64::consts::FRAC_PI_3;
 
 /// How the leader finds its way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -168,6 +173,8 @@ struct Routing {
     unchecked: Vec<Obstacle>,
     /// (time, progress) while nothing held the leader back.
     progress: VecDeque<(f64, f64)>,
+    /// Since when the leader has been turning toward the route, far off its heading.
+    turning_since: Option<f64>,
     replans: u32,
     failure: Option<NoRoute>,
     last_attempt_s: f64,
@@ -235,6 +242,7 @@ impl Planner {
             blocked: Vec::new(),
             unchecked: Vec::new(),
             progress: VecDeque::new(),
+            turning_since: None,
             replans: 0,
             failure: None,
             last_attempt_s: f64::NEG_INFINITY,
@@ -590,6 +598,7 @@ impl Planner {
             return hold(self, Mode::Arrived);
         }
         let window = p.stuck_window_s;
+        let turn_round_s = std::f64::consts::PI / self.turn_limit().max(0.05) + 1.0;
         self.prepare(now_s, pos, map);
         let Some(routing) = self.routing.as_mut() else {
             return hold(self, Mode::NoRoute);
@@ -618,8 +627,15 @@ impl Planner {
             self.next += 1;
             arrived = last;
         }
-        // Blocked: no progress for a window although nothing held the leader back.
-        if speed_scale >= 0.9 {
+        // Blocked: no progress for a window although nothing held the leader back. A turn
+        // toward a new route makes no progress either: a U-turn on the spot at the
+        // formation's turn limit takes longer than the window, and taken as a blockage it
+        // sent the leader back round the other way, the slots' swing reversed under the
+        // followers (0.5–0.9 m off). It is excused as long as turning round could take.
+        let turning = routing
+            .turning_since
+            .is_some_and(|since| now_s - since < turn_round_s);
+        if speed_scale >= 0.9 && !turning {
             routing.progress.push_back((now_s, s));
         } else {
             routing.progress.clear();
@@ -668,6 +684,11 @@ impl Planner {
             wrap_angle(direction.y.atan2(direction.x) - pose.heading)
         };
         let to_end = (end - s).max((route.point_at(end) - pos).length());
+        if err.abs() < TURNING_AWAY {
+            routing.turning_since = None;
+        } else if routing.turning_since.is_none() {
+            routing.turning_since = Some(now_s);
+        }
         let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
         // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
