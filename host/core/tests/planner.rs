@@ -110,3 +110,41 @@ fn symmetric_gap_too_narrow_for_comfort() {
     assert!(o.reached_at.is_some());
     assert!(o.min_clearance > 0.0);
 }
+
+/// A route behind the leader, with a formation's slots 3 m out: the turn on the spot is
+/// limited to 0.8 / 3 rad/s and takes longer than the stuck window. It is a turn, not a
+/// blockage: no replanning, the leader arrives.
+#[test]
+fn a_u_turn_toward_the_route_is_not_a_blockage() {
+    use base_station::planner::route::RouteParams;
+    let map = Map::new(vec![wall((-30.0, 5.0), (10.0, 5.0))]);
+    let goal = DVec2::new(-20.0, 0.0);
+    let mut planner = Planner::routed(
+        PlannerParams::DEFAULT,
+        vec![goal],
+        0.0,
+        RouteParams::for_fleet(FOOTPRINT, 3.0, 0.4),
+    );
+    planner.set_formation(3.0, 0.8, 0.5);
+    let turn_s = std::f64::consts::PI / planner.turn_limit();
+    assert!(turn_s > PlannerParams::DEFAULT.stuck_window_s, "{turn_s} s");
+    let mut pose = start();
+    let dt = 0.1;
+    let mut arrived = None;
+    for k in 0..1200 {
+        let t = k as f64 * dt;
+        let cmd = planner.step(t, dt, pose, &map, 0.0, 1.0);
+        if cmd.mode == Mode::Arrived {
+            arrived = Some(t);
+            break;
+        }
+        pose.position += DVec2::new(pose.heading.cos(), pose.heading.sin()) * cmd.v * dt;
+        pose.heading += cmd.omega * dt;
+    }
+    println!(
+        "U-turn {turn_s:.1} s, arrived {arrived:?}, replans {}",
+        planner.replans()
+    );
+    assert_eq!(planner.replans(), 0, "the turn was taken for a blockage");
+    assert!(arrived.is_some());
+}
