@@ -123,7 +123,11 @@ impl DrivenPath {
     }
 
     /// The point `s` metres back along the path from `leader` (its current position).
-    /// Before the path began, straight back along `heading`.
+    /// Before the path began, straight on along the chord from the leader to the path's
+    /// start, as the control core extends its trail (`control_core::follower::Trail`),
+    /// or back along `heading` while the path is shorter than half a metre. (Back along
+    /// `heading` always, as until 2026-12-02, swung that stretch sideways once the leader
+    /// turned: a 7-follower line's last slot 0.5 m off the street it drove down.)
     pub fn behind(&self, leader: DVec2, heading: f64, s: f64) -> DVec2 {
         let mut remaining = s;
         let mut cur = leader;
@@ -138,7 +142,13 @@ impl DrivenPath {
             remaining -= seg;
             cur = p;
         }
-        cur - DVec2::new(heading.cos(), heading.sin()) * remaining
+        let chord = cur - leader;
+        let back = if s - remaining > 0.5 && chord.length() > 0.25 {
+            chord.normalize()
+        } else {
+            -DVec2::new(heading.cos(), heading.sin())
+        };
+        cur + back * remaining
     }
 }
 
@@ -311,5 +321,32 @@ impl Recorder {
             shape,
             near_obstacle,
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Past the path's start the reference goes on along the chord from the leader to
+    /// the start, not back along the heading the leader has now.
+    #[test]
+    fn behind_the_start_runs_on_along_the_chord() {
+        let mut path = DrivenPath::default();
+        for k in 0..=500 {
+            path.record(DVec2::new(k as f64 * 0.02, 0.0));
+        }
+        // Turned right a little since: the chord still points back down the street.
+        let leader = DVec2::new(10.0 + 0.8, -0.6);
+        path.record(leader);
+        let p = path.behind(leader, -0.64, 14.0);
+        let chord = (DVec2::ZERO - leader).normalize();
+        // 1 m back to (10, 0), 10 m along the path, 3 m on past its start.
+        let expected = chord * 3.0;
+        assert!((p - expected).length() < 0.01, "{p} vs {expected}");
+        assert!(p.y.abs() < 0.2, "{p}: swung off the street");
+        // Along the path itself.
+        let q = path.behind(leader, -0.64, 3.0);
+        assert!((q - DVec2::new(8.0, 0.0)).length() < 0.01, "{q}");
     }
 }
