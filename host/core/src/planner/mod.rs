@@ -55,6 +55,24 @@ use route::{NoRoute, Route, RouteParams, RoutePlanner};
 /// driving along it, rad (60°).
 const TURNING_AWAY: f64 = std::f64::consts::FRAC_PI_3;
 
+/// The heading error to turn through: the shorter way round, unless the leader is already
+/// turning the other way and that way is at most a quarter turn longer. A leader turning
+/// on the spot swings its wide slots round at the followers' speed; reversing the turn
+/// (a route planned again as a barrier comes into view) reverses them under the followers,
+/// who must stop and turn round (0.46 m off on a generated barrier map).
+fn keep_turning(err: f64, omega: f64) -> f64 {
+    const TURNING: f64 = 0.05;
+    if err.abs() <= std::f64::consts::FRAC_PI_2 || omega.abs() < TURNING || err * omega >= 0.0 {
+        return err;
+    }
+    let other_way = err + omega.signum() * std::f64::consts::TAU;
+    if other_way.abs() <= err.abs() + std::f64::consts::FRAC_PI_2 {
+        other_way
+    } else {
+        err
+    }
+}
+
 /// How the leader finds its way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Guidance {
@@ -681,7 +699,10 @@ impl Planner {
         let err = if direction == DVec2::ZERO {
             0.0
         } else {
-            wrap_angle(direction.y.atan2(direction.x) - pose.heading)
+            keep_turning(
+                wrap_angle(direction.y.atan2(direction.x) - pose.heading),
+                self.omega,
+            )
         };
         let to_end = (end - s).max((route.point_at(end) - pos).length());
         if err.abs() < TURNING_AWAY {
@@ -813,5 +834,22 @@ impl Planner {
         [-w, 0.0, w]
             .iter()
             .all(|off| map.ray_cast(pos + dir.perp() * *off, dir, reach) >= reach)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::keep_turning;
+
+    #[test]
+    fn a_turn_under_way_is_kept_when_the_other_way_is_not_much_shorter() {
+        // Turning left, the way now lies 171° to the right: go on left (189°).
+        assert!((keep_turning(-2.99, 0.23) - (-2.99 + std::f64::consts::TAU)).abs() < 1e-12);
+        // Turning left, the way 120° to the right: the left way (240°) is too long.
+        assert_eq!(keep_turning(-2.1, 0.23), -2.1);
+        // Within a quarter turn, or not turning, or already turning that way: as it is.
+        assert_eq!(keep_turning(-1.2, 0.23), -1.2);
+        assert_eq!(keep_turning(-2.99, 0.01), -2.99);
+        assert_eq!(keep_turning(2.99, 0.23), 2.99);
     }
 }
