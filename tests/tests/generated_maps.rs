@@ -51,12 +51,16 @@ fn narrow_sections(world: &World) -> usize {
     let mut inside = false;
     for s in &world.recorder.samples {
         let r = &s.robots[l];
-        let pose = base_station::planner::PlanPose {
-            position: DVec2::new(r.x, r.y),
-            heading: r.heading,
+        let motion = base_station::formation::LeaderMotion {
+            pose: base_station::planner::PlanPose {
+                position: DVec2::new(r.x, r.y),
+                heading: r.heading,
+            },
+            v: r.v,
+            omega: r.omega,
         };
-        let narrow = world.map.clearance(pose.position, half) < half
-            || manager.wide_slot_blocked(&world.map, pose, manager.slot_need());
+        let narrow = world.map.clearance(motion.pose.position, half) < half
+            || manager.wide_slot_blocked(&world.map, motion, manager.slot_need());
         if narrow && !inside {
             sections += 1;
         }

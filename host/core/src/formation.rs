@@ -171,6 +171,40 @@ const EXIT_MARGIN: f64 = 1.0;
 const HYSTERESIS: f64 = 0.3;
 /// Clearance beyond its footprint a follower needs at its wide slot, m.
 const SLOT_MARGIN: f64 = 0.1;
+/// The leader's pose and how it drives: forward speed `v` (m/s), turn rate `omega` (rad/s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeaderMotion {
+    pub pose: PlanPose,
+    pub v: f64,
+    pub omega: f64,
+}
+
+impl LeaderMotion {
+    /// Where the leader is `t` seconds on, driving the same arc.
+    pub fn after(&self, t: f64) -> PlanPose {
+        let PlanPose { position, heading } = self.pose;
+        let turn = self.omega * t;
+        let shift = if turn.abs() < 1e-6 {
+            let mid = heading + 0.5 * turn;
+            DVec2::new(mid.cos(), mid.sin()) * (self.v * t)
+        } else {
+            let r = self.v / self.omega;
+            DVec2::new(
+                r * ((heading + turn).sin() - heading.sin()),
+                -r * ((heading + turn).cos() - heading.cos()),
+            )
+        };
+        PlanPose {
+            position: position + shift,
+            heading: heading + turn,
+        }
+    }
+}
+
+/// How far ahead in time the wide slots are checked along the leader's arc, s: a follower
+/// slows behind a bin its slot is about to cross (its ultrasonic ring looks ahead), so
+/// the check at the leader's pose alone came when the follower was already held.
+const SLOT_HORIZON_S: f64 = 2.0;
 /// The wide shape returns only with this much wide way ahead beyond the lookahead and
 /// the formation's length, m.
 const REOPEN_AHEAD: f64 = 2.0;
@@ -316,14 +350,21 @@ impl FormationManager {
     /// does not tell this: in a turn a V swings its rear slots out beyond it, over what
     /// stands beside the leader's way (a 5-follower V's follower 9 m back pressed on a bin
     /// its slot had swept into, up to 12 m off, and the leader, pacing on it, crawled).
-    /// At the leader's pose, not along the route ahead: the route's corners swing a rigid
-    /// V further than the leader's rounded turns do (checked ahead, the 2-follower dense
-    /// bin fields changed shape where no slot ever met a bin).
-    pub fn wide_slot_blocked(&self, map: &Map, leader: PlanPose, need: f64) -> bool {
-        self.wide.iter().any(|(l, phi)| {
-            let a = leader.heading + phi;
-            let slot = leader.position + DVec2::new(a.cos(), a.sin()) * *l;
-            map.clearance(slot, need) < need
+    /// Checked along the leader's arc as it drives now, `SLOT_HORIZON_S` ahead (a short
+    /// stretch, which the leader does drive), not along the route ahead: the route's
+    /// corners swing a rigid V further than the leader's rounded turns do (checked along
+    /// the route, the 2-follower dense bin fields changed shape where no slot ever met a
+    /// bin). At the leader's pose alone the check came when a rear follower was already
+    /// held behind the bin its slot was crossing.
+    pub fn wide_slot_blocked(&self, map: &Map, leader: LeaderMotion, need: f64) -> bool {
+        const STEPS: usize = 4;
+        (0..=STEPS).any(|k| {
+            let pose = leader.after(SLOT_HORIZON_S * k as f64 / STEPS as f64);
+            self.wide.iter().any(|(l, phi)| {
+                let a = pose.heading + phi;
+                let slot = pose.position + DVec2::new(a.cos(), a.sin()) * *l;
+                map.clearance(slot, need) < need
+            })
         })
     }
 
@@ -339,7 +380,7 @@ impl FormationManager {
     pub fn step(
         &mut self,
         now_s: f64,
-        leader: PlanPose,
+        leader: LeaderMotion,
         ahead: &[DVec2],
         behind: &[DVec2],
         followers: &[DVec2],

@@ -1,6 +1,6 @@
 //! Passage detection and the slot transition on synthetic maps.
 
-use base_station::formation::{FormationManager, FormationSpec, Target, WideShape};
+use base_station::formation::{FormationManager, FormationSpec, LeaderMotion, Target, WideShape};
 use base_station::geometry::Obstacle;
 use base_station::map::Map;
 use base_station::planner::PlanPose;
@@ -84,7 +84,12 @@ fn drive_for(map: &Map, weave: f64, steps: usize) -> Run {
         let followers = fm.slot_points(leader);
         let before = fm.transformations().len();
         let (ahead, behind) = paths(leader, &driven);
-        fm.step(t, leader, &ahead, &behind, &followers, map);
+        let motion = LeaderMotion {
+            pose: leader,
+            v: 0.4,
+            omega: weave * 0.8 * (t * 0.8).cos(),
+        };
+        fm.step(t, motion, &ahead, &behind, &followers, map);
         if driven
             .last()
             .is_none_or(|p| (*p - leader.position).length() >= 0.25)
@@ -163,7 +168,12 @@ fn slots_move_without_jumps() {
             heading: 0.0,
         };
         let (ahead, behind) = paths(leader, &[]);
-        fm.step(t, leader, &ahead, &behind, &fm.slot_points(leader), &map);
+        let motion = LeaderMotion {
+            pose: leader,
+            v: 0.4,
+            omega: 0.0,
+        };
+        fm.step(t, motion, &ahead, &behind, &fm.slot_points(leader), &map);
         let pts = fm.slot_points(leader);
         if let Some(prev) = &last {
             for (a, b) in prev.iter().zip(&pts) {

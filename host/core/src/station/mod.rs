@@ -126,6 +126,16 @@ pub struct LeaderEstimate {
     pub omega: f64,
 }
 
+impl LeaderEstimate {
+    pub fn motion(&self) -> crate::formation::LeaderMotion {
+        crate::formation::LeaderMotion {
+            pose: self.pose,
+            v: self.v,
+            omega: self.omega,
+        }
+    }
+}
+
 pub struct BaseStation {
     cfg: StationConfig,
     link: Box<Link<MAX_ROBOTS>>,
@@ -572,9 +582,14 @@ impl BaseStation {
             .chain(self.driven.iter().rev().copied())
             .collect();
         let before = self.formation.transformations().len();
-        let blend =
-            self.formation
-                .step(now_s, leader.pose, &ahead, &behind, &followers, &self.world);
+        let blend = self.formation.step(
+            now_s,
+            leader.motion(),
+            &ahead,
+            &behind,
+            &followers,
+            &self.world,
+        );
         if self.formation.transformations().len() > before {
             let to = self.formation.target();
             tracing::info!(?to, "formation change");
