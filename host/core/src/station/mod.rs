@@ -598,9 +598,14 @@ impl BaseStation {
         }
 
         let half_width = self.formation.half_width();
-        // Only the wide slots swing round the leader; the line follows its trail.
+        // Only the wide slots swing round the leader; the line follows its trail. Until
+        // the formation is all line, the wide slots' full reach counts: half way through a
+        // change a V's rear slot swings with half its reach, but moves across on its own
+        // too, and a turn the half reach allowed swung it at 1.5 m/s, out of its
+        // follower's reach (1.5 m off).
+        let swinging = if blend >= 1.0 { 0.0 } else { 1.0 };
         self.planner.set_formation(
-            self.formation.wide_reach() * (1.0 - blend),
+            self.formation.wide_reach() * swinging,
             self.cfg.follower_speed,
             self.cfg.follower_accel,
         );
