@@ -101,8 +101,9 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
         .filter(|x| x.role == "follower")
         .filter_map(|x| x.straight_avg_abs_omega_radps)
         .fold(0.0, f64::max);
+    let legs = r.straight_leg_time_s;
     let line = format!(
-        "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} changes {changes} sections {sections}",
+        "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} ({legs:.0} s) changes {changes} sections {sections}",
         g.name,
         r.time_to_goal_s.map_or("never".into(), |t| format!("{t:.1}")),
         r.collisions,
@@ -119,7 +120,7 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
     if worst > 0.35 {
         bad.push(format!("max tracking error {worst:.3} m"));
     }
-    if jitter > common::STRAIGHT_OMEGA_MAX {
+    if legs >= common::STRAIGHT_LEGS_MIN_S && jitter > common::STRAIGHT_OMEGA_MAX {
         bad.push(format!("followers turn {jitter:.3} rad/s on straight legs"));
     }
     if changes > 2 * sections {

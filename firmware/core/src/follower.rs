@@ -159,10 +159,10 @@ pub fn lphi_law_paper(
     Some(Twist { v, omega })
 }
 
-/// Trail points kept: 9.6 m of the leader's path at 0.1 m spacing (768 bytes).
+/// Trail points kept: 14.4 m of the leader's path at 0.15 m spacing (768 bytes).
 pub const TRAIL_POINTS: usize = 96;
 /// Least distance between two trail points, m.
-pub const TRAIL_SPACING: f32 = 0.1;
+pub const TRAIL_SPACING: f32 = 0.15;
 
 /// The path the leader drove, newest last. In the line, follower k's reference is the
 /// point k·D back **along this path**, not k·D behind the leader's current heading: on a

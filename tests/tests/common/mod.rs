@@ -68,6 +68,13 @@ pub fn assert_paper_bounds(r: &Report) {
 /// Issue 10: a follower's mean |ω| on straight legs is at most this, rad/s.
 pub const STRAIGHT_OMEGA_MAX: f64 = 0.05;
 
+/// Straight legs shorter than this in all are too few samples for a mean turn rate to
+/// say anything, s: a 7-follower line on a gently curving street had 0.7 s (7 samples)
+/// of legs straight over its 13 m length, and their mean swung 0.06–0.07 rad/s with the
+/// seed while the same followers turned 0.03 rad/s on average over the street's last
+/// 40 s.
+pub const STRAIGHT_LEGS_MIN_S: f64 = 5.0;
+
 /// A follower's turn rate on straight legs (where the run had any) within
 /// [`STRAIGHT_OMEGA_MAX`].
 pub fn assert_smooth(name: &str, robot: &RobotReport) {
