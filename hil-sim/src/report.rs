@@ -53,6 +53,11 @@ pub struct RobotReport {
     /// Mean |ω| on straight legs (see [`straight_legs`]); followers after their join. Null
     /// when the run had no straight leg.
     pub straight_avg_abs_omega_radps: Option<f64>,
+    /// Followers: mean |ω| after their join where their own reference point runs straight
+    /// (see [`slot_straight_legs`]); null where it never did.
+    pub slot_straight_avg_abs_omega_radps: Option<f64>,
+    /// Followers: the time that mean is over, s.
+    pub slot_straight_time_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -155,38 +160,72 @@ const STRAIGHT_MIN_SPEED: f64 = 0.1;
 /// moves, and the shape is settled (not changing) over that stretch. Where the leader
 /// itself wiggles, the stretch is still straight: its wiggles count against it.
 pub fn straight_legs(samples: &[Sample], leader: usize, reach: f64) -> Vec<bool> {
-    // The leader's path with its arc length at every sample.
-    let Route { points, arc } = Route::new(
-        samples
-            .iter()
-            .map(|s| DVec2::new(s.robots[leader].x, s.robots[leader].y))
-            .collect(),
-    );
-    let (behind, ahead) = (reach + 1.0, 1.0);
-    let (mut from, mut to) = (0, 0);
-    (0..samples.len())
-        .map(|i| {
-            while arc[from] < arc[i] - behind {
+    let path = samples
+        .iter()
+        .map(|s| Some(DVec2::new(s.robots[leader].x, s.robots[leader].y)))
+        .collect();
+    straight_along(samples, path, reach + 1.0, 1.0, |s| {
+        s.robots[leader].v >= STRAIGHT_MIN_SPEED
+    })
+}
+
+/// Which samples have follower `i`'s reference point on a straight stretch of its own
+/// path: [`SLOT_LEG_M`] back and ahead of it within [`STRAIGHT_WITHIN_M`] of the chord,
+/// moving, the shape settled. A big formation's rear slots run straight long before the
+/// leader's path is straight over the formation's whole length (a 7-follower line on a
+/// gently curving street: 0.7 s of the leader's legs in 100 s).
+pub fn slot_straight_legs(samples: &[Sample], i: usize) -> Vec<bool> {
+    let path = samples
+        .iter()
+        .map(|s| s.robots[i].slot.map(|(x, y)| DVec2::new(x, y)))
+        .collect();
+    straight_along(samples, path, SLOT_LEG_M, SLOT_LEG_M, |s| {
+        s.robots[i].v >= STRAIGHT_MIN_SPEED
+    })
+}
+
+/// How far back and ahead along a follower's reference path it must run straight, m.
+pub const SLOT_LEG_M: f64 = 1.5;
+
+/// Samples where `path` (one point per sample, `None` where there is none) runs straight
+/// from `behind` metres back to `ahead` metres on, `moving` holds, and the shape is
+/// settled over that stretch.
+fn straight_along(
+    samples: &[Sample],
+    path: Vec<Option<DVec2>>,
+    behind: f64,
+    ahead: f64,
+    moving: impl Fn(&Sample) -> bool,
+) -> Vec<bool> {
+    let known: Vec<usize> = (0..path.len()).filter(|i| path[*i].is_some()).collect();
+    let mut on = vec![false; samples.len()];
+    // Stretches of consecutive samples with a point; a gap starts a new path.
+    for run in known.chunk_by(|a, b| b - a == 1) {
+        let Route { points, arc } = Route::new(run.iter().map(|i| path[*i].unwrap()).collect());
+        let (mut from, mut to) = (0, 0);
+        for (k, &i) in run.iter().enumerate() {
+            while arc[from] < arc[k] - behind {
                 from += 1;
             }
-            while to + 1 < arc.len() && arc[to] < arc[i] + ahead {
+            while to + 1 < arc.len() && arc[to] < arc[k] + ahead {
                 to += 1;
             }
-            let long_enough = arc[i] - arc[from] >= behind - 0.2 && arc[to] - arc[i] >= ahead - 0.2;
-            if !long_enough || samples[i].robots[leader].v < STRAIGHT_MIN_SPEED {
-                return false;
+            let long_enough = arc[k] - arc[from] >= behind - 0.2 && arc[to] - arc[k] >= ahead - 0.2;
+            if !long_enough || !moving(&samples[i]) {
+                continue;
             }
-            let settled = samples[from..=to]
+            let settled = run[from..=to]
                 .iter()
-                .all(|s| matches!(s.shape, "wide" | "line"));
+                .all(|j| matches!(samples[*j].shape, "wide" | "line"));
             let (a, b) = (points[from], points[to]);
             let chord = (b - a).normalize_or_zero();
-            settled
+            on[i] = settled
                 && points[from..=to]
                     .iter()
-                    .all(|p| (*p - a).perp_dot(chord).abs() <= STRAIGHT_WITHIN_M)
-        })
-        .collect()
+                    .all(|p| (*p - a).perp_dot(chord).abs() <= STRAIGHT_WITHIN_M);
+        }
+    }
+    on
 }
 
 fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
@@ -270,6 +309,8 @@ pub fn build_report(
                 time_within_0_1m_fraction: None,
                 max_tracking_error_transforming_m: None,
                 straight_avg_abs_omega_radps: None,
+                slot_straight_avg_abs_omega_radps: None,
+                slot_straight_time_s: None,
             };
             let straight_omega = |since: f64| {
                 mean(
@@ -300,6 +341,18 @@ pub fn build_report(
                 .collect();
             report.joined_at_s = joined;
             report.straight_avg_abs_omega_radps = joined.and_then(straight_omega);
+            if let Some(j) = joined {
+                let own: Vec<f64> = rec
+                    .samples
+                    .iter()
+                    .zip(slot_straight_legs(&rec.samples, i))
+                    .filter(|(s, on)| *on && s.t >= j)
+                    .map(|(s, _)| s.robots[i].omega.abs())
+                    .collect();
+                report.slot_straight_time_s =
+                    Some(own.len() as f64 * SAMPLE_PERIOD_US as f64 / 1e6);
+                report.slot_straight_avg_abs_omega_radps = mean(own.into_iter());
+            }
             report.max_tracking_error_m = if joined.is_some() {
                 max(after.iter().map(|(_, e)| *e))
             } else {
@@ -412,6 +465,34 @@ mod tests {
             3.0,
         );
         assert!(!changing[150] && changing[300]);
+    }
+
+    /// A follower's own legs: where its reference runs straight 1.5 m back and ahead, on a
+    /// path the leader's straight legs never cover whole (a 12 m formation on a 20 m
+    /// radius arc that straightens out at t = 20 s); none where it has no reference.
+    #[test]
+    fn a_followers_own_legs_follow_its_reference() {
+        let bend = |t: f64| {
+            let s = 0.4 * t;
+            if s < 8.0 {
+                (20.0 * (s / 20.0).sin(), 20.0 * (1.0 - (s / 20.0).cos()))
+            } else {
+                let (a, c) = ((8.0f64 / 20.0).sin(), (8.0f64 / 20.0).cos());
+                (20.0 * a + (s - 8.0) * c, 20.0 * (1.0 - c) + (s - 8.0) * a)
+            }
+        };
+        let mut run = samples(bend, |_| "line");
+        for (k, s) in run.iter_mut().enumerate() {
+            let (x, y) = (s.robots[0].x, s.robots[0].y);
+            s.robots[0].slot = (k >= 10).then_some((x, y));
+        }
+        let own = slot_straight_legs(&run, 0);
+        // On the arc (sagitta over 3 m: 5.6 cm), no; well past the bend, yes; before the
+        // reference existed, no.
+        assert!(!own[100] && own[300] && !own[5]);
+        // The leader's legs over a 12 m formation need 13 m of straight behind: never
+        // within these 8 m.
+        assert!(straight_legs(&run, 0, 12.0).iter().all(|on| !on));
     }
 
     #[test]

@@ -2,8 +2,9 @@
 //! streets with pinches and bends, a bin on the start line, scattered starts, traps,
 //! alleys down to 1.3 m, 5- and 7-follower V, maps with no way). Every map with a way:
 //! goal reached, 0 contacts, every follower's max tracking error after its join ≤ 0.35 m,
-//! mean |ω| on straight legs ≤ 0.05 rad/s, at most two shape changes per narrow section
-//! of the leader's path. Every map without
+//! mean |ω| ≤ 0.05 rad/s on the leader's straight legs and where each follower's own
+//! reference runs straight (each where a run has 5 s of it), at most two shape changes per
+//! narrow section of the leader's path. Every map without
 //! one: refused up front, naming the waypoint. Obstacles the map does not hold are sensed
 //! and routed round (a `replanned` event).
 //!
@@ -102,8 +103,15 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
         .filter_map(|x| x.straight_avg_abs_omega_radps)
         .fold(0.0, f64::max);
     let legs = r.straight_leg_time_s;
+    // Each follower where its own reference runs straight (5 s of it at least).
+    let own_jitter = r
+        .robots
+        .iter()
+        .filter(|x| x.slot_straight_time_s.unwrap_or(0.0) >= common::STRAIGHT_LEGS_MIN_S)
+        .filter_map(|x| x.slot_straight_avg_abs_omega_radps)
+        .fold(0.0, f64::max);
     let line = format!(
-        "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} ({legs:.0} s) changes {changes} sections {sections}",
+        "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} ({legs:.0} s) own {own_jitter:.3} changes {changes} sections {sections}",
         g.name,
         r.time_to_goal_s.map_or("never".into(), |t| format!("{t:.1}")),
         r.collisions,
@@ -122,6 +130,11 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
     }
     if legs >= common::STRAIGHT_LEGS_MIN_S && jitter > common::STRAIGHT_OMEGA_MAX {
         bad.push(format!("followers turn {jitter:.3} rad/s on straight legs"));
+    }
+    if own_jitter > common::STRAIGHT_OMEGA_MAX {
+        bad.push(format!(
+            "a follower turns {own_jitter:.3} rad/s where its reference runs straight"
+        ));
     }
     if changes > 2 * sections {
         bad.push(format!(

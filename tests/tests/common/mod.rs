@@ -75,13 +75,22 @@ pub const STRAIGHT_OMEGA_MAX: f64 = 0.05;
 /// 40 s.
 pub const STRAIGHT_LEGS_MIN_S: f64 = 5.0;
 
-/// A follower's turn rate on straight legs (where the run had any) within
+/// A follower's turn rate on straight legs (where the run had any) and where its own
+/// reference runs straight (where it did for [`STRAIGHT_LEGS_MIN_S`]) within
 /// [`STRAIGHT_OMEGA_MAX`].
 pub fn assert_smooth(name: &str, robot: &RobotReport) {
     if let Some(w) = robot.straight_avg_abs_omega_radps {
         assert!(
             w <= STRAIGHT_OMEGA_MAX,
             "{name}: follower {} turns {w:.3} rad/s on average on straight legs",
+            robot.id
+        );
+    }
+    if robot.slot_straight_time_s.unwrap_or(0.0) >= STRAIGHT_LEGS_MIN_S {
+        let w = robot.slot_straight_avg_abs_omega_radps.unwrap_or(0.0);
+        assert!(
+            w <= STRAIGHT_OMEGA_MAX,
+            "{name}: follower {} turns {w:.3} rad/s on average where its reference runs straight",
             robot.id
         );
     }
