@@ -388,7 +388,7 @@ impl FormationManager {
     /// (at the leader's pose) is clear by `need`. Back to the wide shape the followers
     /// cross that way sideways, 4.5 m for a 5-follower V's last: one met a bin on it and
     /// was held behind it (1.3 m off) while its slot went on.
-    fn widening_clear(&self, map: &Map, leader: PlanPose, behind: &[DVec2], need: f64) -> bool {
+    pub fn widening_clear(&self, map: &Map, leader: PlanPose, behind: &[DVec2], need: f64) -> bool {
         self.wide
             .iter()
             .zip(&self.line)
@@ -487,52 +487,5 @@ impl FormationManager {
             start_s: now_s,
             reason,
         });
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::geometry::Obstacle;
-
-    /// A bin between follower 1's line slot and its wide slot, near neither: the wide
-    /// slots are free, the way to them is not.
-    #[test]
-    fn a_bin_on_the_way_back_to_the_wide_shape_is_seen() {
-        let spec = FormationSpec {
-            wide: WideShape::V {
-                distance: 3.0,
-                angle: 150f64.to_radians(),
-            },
-            followers: 2,
-            line_spacing: 1.5,
-            margin: 0.5,
-            transition_s: 3.0,
-            min_dwell_s: 2.0,
-            lookahead: 5.0,
-            footprint: 0.3,
-            slot_speed: 0.8,
-        };
-        let fm = FormationManager::new(spec);
-        let leader = LeaderMotion {
-            pose: PlanPose {
-                position: DVec2::new(20.0, 10.0),
-                heading: 0.0,
-            },
-            v: 0.4,
-            omega: 0.0,
-        };
-        let behind: Vec<DVec2> = (0..=80)
-            .map(|i| DVec2::new(20.0 - 0.25 * i as f64, 10.0))
-            .collect();
-        // Line slot (18.5, 10), wide slot (17.40, 11.5): the bin half way.
-        let bin = Map::new(vec![Obstacle::Circle {
-            center: DVec2::new(17.95, 10.75),
-            radius: 0.2,
-        }]);
-        let need = fm.slot_need();
-        assert!(!fm.wide_slot_blocked(&bin, leader, need));
-        assert!(!fm.widening_clear(&bin, leader.pose, &behind, need));
-        assert!(fm.widening_clear(&Map::new(vec![]), leader.pose, &behind, need));
     }
 }

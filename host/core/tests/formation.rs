@@ -202,3 +202,30 @@ fn v_slots_for_five_followers() {
     // 3.6 m for the paper's triangle: 2·3·sin 30° + 2·0.3.
     assert!((spec().wide_width() - 3.6).abs() < 1e-9);
 }
+
+/// A bin between follower 1's line slot and its wide slot, near neither: the wide slots
+/// are free, the way to them is not.
+#[test]
+fn a_bin_on_the_way_back_to_the_wide_shape_is_seen() {
+    let fm = FormationManager::new(spec());
+    let leader = LeaderMotion {
+        pose: PlanPose {
+            position: DVec2::new(20.0, 10.0),
+            heading: 0.0,
+        },
+        v: 0.4,
+        omega: 0.0,
+    };
+    let behind: Vec<DVec2> = (0..=80)
+        .map(|i| DVec2::new(20.0 - 0.25 * i as f64, 10.0))
+        .collect();
+    // Line slot (18.5, 10), wide slot (17.40, 11.5): the bin half way.
+    let bin = Map::new(vec![Obstacle::Circle {
+        center: DVec2::new(17.95, 10.75),
+        radius: 0.2,
+    }]);
+    let need = fm.slot_need();
+    assert!(!fm.wide_slot_blocked(&bin, leader, need));
+    assert!(!fm.widening_clear(&bin, leader.pose, &behind, need));
+    assert!(fm.widening_clear(&Map::new(vec![]), leader.pose, &behind, need));
+}
