@@ -127,6 +127,7 @@ pub struct LeaderEstimate {
 }
 
 impl LeaderEstimate {
+    /// As the formation manager takes it.
     pub fn motion(&self) -> crate::formation::LeaderMotion {
         crate::formation::LeaderMotion {
             pose: self.pose,
