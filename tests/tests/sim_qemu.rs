@@ -1,6 +1,6 @@
 //! The real firmware ELF in QEMU, one per robot, lockstep with the simulator: the paper's
 //! bounds, runs identical to the native control core's (under CPU load, on a lossy link,
-//! with faults, with six robots), and a crash or hang that fails the run with a clear
+//! with faults, with six robots, on generated maps of every kind), and a crash or hang that fails the run with a clear
 //! message instead of hanging it. Needs `qemu-system-arm` and the firmware
 //! (`./scripts/build-firmware.sh`); `./scripts/test-all.sh` provides both.
 
@@ -187,6 +187,23 @@ fn identical_to_native_with_six_robots() {
     let s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
     assert_eq!(s.robots.len(), 6);
     assert_identical(s, 2);
+}
+
+/// One generated map of each other kind the suite runs: a street with pinches and bends
+/// (shape changes), a 1.3 m alley (the ultrasonic ring at work), scattered starts
+/// (joining from 8–15 m), an unmapped barrier (the leader's scanner, replanning, a U-turn).
+#[test]
+fn identical_to_native_on_generated_maps() {
+    for g in [
+        generate::street(1, 2),
+        generate::alley(1, 1.3),
+        generate::scattered_starts(1),
+        generate::unmapped_in_the_way(1),
+    ] {
+        let s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
+        let r = assert_identical(s, 1);
+        println!("{}: identical, goal {:?}", g.name, r.time_to_goal_s);
+    }
 }
 
 fn fail_one_robot(fault: FirmwareFault) -> String {
