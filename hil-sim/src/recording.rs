@@ -317,11 +317,8 @@ impl Recording {
             .spawn(move || {
                 // The channels live as long as their context.
                 let _ctx = ctx;
-                let mode = std::env::var("RECMODE").unwrap_or_default();
-                for part in inbox {
-                    if mode != "nothing" {
-                        writer.write(part);
-                    }
+                for batch in inbox {
+                    writer.write(batch);
                 }
                 mcap.close()
                     .map_err(|e| format!("cannot write {named}: {e}"))?;
