@@ -161,11 +161,8 @@ pub struct FormationManager {
     events: Vec<Transformation>,
 }
 
-/// The leader's speed factor while the slots move into the line. 0.4 until 2026-12-02: a
-/// slower leader lets a V's rear followers, moving forward and across, bunch up as they
-/// merge (5-follower V held 0.45 m off by the neighbour merging beside it); the 20-seed
-/// sweep: 0.25 → 232 of 240, 0.4 → 233, 0.55 → 234, 0.7 → 234 with a worse worst map.
-pub const TRANSFORM_SPEED: f64 = 0.55;
+/// The leader's speed factor while the slots move.
+pub const TRANSFORM_SPEED: f64 = 0.4;
 /// Slow time after the slots reached the new shape, s.
 const SETTLE_S: f64 = 1.5;
 /// How far past the narrow stretch every follower must be before the wide shape returns, m.
