@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
 use std::net::{SocketAddr, UdpSocket};
 use std::str::FromStr;
-use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::sync::mpsc::{self, Receiver, SyncSender};
 use std::time::Duration;
 
 use anyhow::{bail, Context};
@@ -251,28 +251,12 @@ fn spawn(
             text,
             unix_ms: super::unix_ms().unwrap_or(0),
         };
-        match tx.try_send(line) {
-            Ok(()) => true,
-            Err(TrySendError::Full(_)) => {
-                dropped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                true
-            }
-            Err(TrySendError::Disconnected(_)) => false,
-        }
+        super::feed::offer(&tx, line, &dropped)
     };
     match source.clone() {
         Source::Udp(addr) => {
             let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
-            std::thread::spawn(move || {
-                let mut buf = [0u8; 65_536];
-                while let Ok(n) = socket.recv(&mut buf) {
-                    for line in buf[..n].split(|b| *b == b'\n') {
-                        if !line.is_empty() && !send(text_of(line)) {
-                            return;
-                        }
-                    }
-                }
-            });
+            super::feed::read_udp_lines(socket, "localization", move |line| send(text_of(line)))?;
         }
         Source::Tcp(addr) => {
             std::thread::spawn(move || loop {

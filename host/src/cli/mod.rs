@@ -3,6 +3,7 @@
 pub mod check;
 pub mod console;
 pub mod decode;
+pub mod feed;
 pub mod localization;
 pub mod record;
 pub mod robot_config;

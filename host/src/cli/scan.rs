@@ -6,7 +6,7 @@
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{self, Receiver, TrySendError};
+use std::sync::mpsc::{self, Receiver};
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -48,28 +48,13 @@ impl ScanFeed {
         let (tx, lines) = mpsc::sync_channel(IN_FLIGHT);
         let dropped = Arc::new(AtomicU64::new(0));
         let full = dropped.clone();
-        std::thread::Builder::new()
-            .name("scan feed".into())
-            .spawn(move || {
-                let mut buf = [0u8; 65_536];
-                while let Ok(n) = socket.recv(&mut buf) {
-                    for line in buf[..n].split(|b| *b == b'\n') {
-                        let parsed = match std::str::from_utf8(line) {
-                            Ok(text) => parse_scan_line(text).transpose(),
-                            Err(_) => Some(Err("not UTF-8".to_string())),
-                        };
-                        let Some(parsed) = parsed else { continue };
-                        match tx.try_send(parsed) {
-                            Ok(()) => {}
-                            Err(TrySendError::Full(_)) => {
-                                full.fetch_add(1, Ordering::Relaxed);
-                            }
-                            Err(TrySendError::Disconnected(_)) => return,
-                        }
-                    }
-                }
-            })
-            .context("cannot start the scan feed's reader")?;
+        super::feed::read_udp_lines(socket, "scan feed", move |line| {
+            let parsed = match std::str::from_utf8(line) {
+                Ok(text) => parse_scan_line(text).transpose(),
+                Err(_) => Some(Err("not UTF-8".to_string())),
+            };
+            parsed.is_none_or(|p| super::feed::offer(&tx, p, &full))
+        })?;
         Ok(Self {
             lines,
             dropped,
