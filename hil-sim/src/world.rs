@@ -600,8 +600,8 @@ impl World {
             }
         }
 
-        // The leader's scan at 10 Hz: for the external station to take, or into ours,
-        // which steps with it.
+        // At 10 Hz the leader scans: for the external station to take, or into ours,
+        // which then steps.
         if t.is_multiple_of(PERIOD_US) {
             let hits = self
                 .leader_position()
@@ -609,22 +609,22 @@ impl World {
                 .unwrap_or_default();
             if external {
                 self.published_scan = hits;
-            } else if !hits.is_empty() {
-                self.station.sense(&hits);
-            }
-        }
-        if t.is_multiple_of(PERIOD_US) && !external {
-            self.station.step(base_ms);
-            let out = self.station.take_outbox();
-            self.transmit(0, &out);
-            if let Some(route) = self.station.planner().route() {
-                if self.routes.last().is_none_or(|(_, r)| *r != route.points) {
-                    self.routes.push((t, route.points.clone()));
+            } else {
+                if !hits.is_empty() {
+                    self.station.sense(&hits);
                 }
-            }
-            if t.is_multiple_of(1_000_000) {
-                self.links
-                    .push((t, crate::link_health::link_health(&self.station, base_ms)));
+                self.station.step(base_ms);
+                let out = self.station.take_outbox();
+                self.transmit(0, &out);
+                if let Some(route) = self.station.planner().route() {
+                    if self.routes.last().is_none_or(|(_, r)| *r != route.points) {
+                        self.routes.push((t, route.points.clone()));
+                    }
+                }
+                if t.is_multiple_of(1_000_000) {
+                    self.links
+                        .push((t, crate::link_health::link_health(&self.station, base_ms)));
+                }
             }
         }
 
