@@ -107,8 +107,7 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
     let own_jitter = r
         .robots
         .iter()
-        .filter(|x| x.slot_straight_time_s.unwrap_or(0.0) >= common::STRAIGHT_LEGS_MIN_S)
-        .filter_map(|x| x.slot_straight_avg_abs_omega_radps)
+        .filter_map(common::own_straight_omega)
         .fold(0.0, f64::max);
     let line = format!(
         "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} ({legs:.0} s) own {own_jitter:.3} changes {changes} sections {sections}",

@@ -75,6 +75,14 @@ pub const STRAIGHT_OMEGA_MAX: f64 = 0.05;
 /// 40 s.
 pub const STRAIGHT_LEGS_MIN_S: f64 = 5.0;
 
+/// A follower's mean |ω| where its own reference runs straight, if it did for at least
+/// [`STRAIGHT_LEGS_MIN_S`] (fewer samples say nothing).
+pub fn own_straight_omega(robot: &RobotReport) -> Option<f64> {
+    (robot.slot_straight_time_s.unwrap_or(0.0) >= STRAIGHT_LEGS_MIN_S)
+        .then_some(robot.slot_straight_avg_abs_omega_radps)
+        .flatten()
+}
+
 /// A follower's turn rate on straight legs (where the run had any) and where its own
 /// reference runs straight (where it did for [`STRAIGHT_LEGS_MIN_S`]) within
 /// [`STRAIGHT_OMEGA_MAX`].
@@ -86,8 +94,7 @@ pub fn assert_smooth(name: &str, robot: &RobotReport) {
             robot.id
         );
     }
-    if robot.slot_straight_time_s.unwrap_or(0.0) >= STRAIGHT_LEGS_MIN_S {
-        let w = robot.slot_straight_avg_abs_omega_radps.unwrap_or(0.0);
+    if let Some(w) = own_straight_omega(robot) {
         assert!(
             w <= STRAIGHT_OMEGA_MAX,
             "{name}: follower {} turns {w:.3} rad/s on average where its reference runs straight",
