@@ -174,6 +174,12 @@ const SLOT_MARGIN: f64 = 0.1;
 /// Spacing of the points checked along a follower's way between its slots, m.
 const WAY_STEP: f64 = 0.25;
 
+/// Where slot (L, φ) is with the leader at `leader`: rigid to its pose.
+fn slot_point(leader: PlanPose, (l, phi): (f64, f64)) -> DVec2 {
+    let a = leader.heading + phi;
+    leader.position + DVec2::new(a.cos(), a.sin()) * l
+}
+
 /// The point `s` along `path` from its first point, if the path is that long.
 fn along(path: &[DVec2], s: f64) -> Option<DVec2> {
     let mut left = s;
@@ -305,11 +311,7 @@ impl FormationManager {
     /// The slot points in the world for a leader pose.
     pub fn slot_points(&self, leader: PlanPose) -> Vec<DVec2> {
         (0..self.spec.followers)
-            .map(|k| {
-                let (l, phi) = self.slot(k);
-                let a = leader.heading + phi;
-                leader.position + DVec2::new(a.cos(), a.sin()) * l
-            })
+            .map(|k| slot_point(leader, self.slot(k)))
             .collect()
     }
 
@@ -376,10 +378,9 @@ impl FormationManager {
         const STEPS: usize = 4;
         (0..=STEPS).any(|k| {
             let pose = leader.after(SLOT_HORIZON_S * k as f64 / STEPS as f64);
-            self.wide.iter().any(|(l, phi)| {
-                let a = pose.heading + phi;
-                let slot = pose.position + DVec2::new(a.cos(), a.sin()) * *l;
-                map.clearance(slot, need) < need
+            self.wide.iter().any(|slot| {
+                let p = slot_point(pose, *slot);
+                map.clearance(p, need) < need
             })
         })
     }
@@ -389,21 +390,17 @@ impl FormationManager {
     /// cross that way sideways, 4.5 m for a 5-follower V's last: one met a bin on it and
     /// was held behind it (1.3 m off) while its slot went on.
     pub fn widening_clear(&self, map: &Map, leader: PlanPose, behind: &[DVec2], need: f64) -> bool {
-        self.wide
-            .iter()
-            .zip(&self.line)
-            .all(|((wl, wphi), (ll, _))| {
-                let a = leader.heading + wphi;
-                let wide = leader.position + DVec2::new(a.cos(), a.sin()) * *wl;
-                let Some(line) = along(behind, *ll) else {
-                    return true;
-                };
-                let steps = ((wide - line).length() / WAY_STEP).ceil().max(1.0) as usize;
-                (0..=steps).all(|i| {
-                    let p = line.lerp(wide, i as f64 / steps as f64);
-                    map.clearance(p, need) >= need
-                })
+        self.wide.iter().zip(&self.line).all(|(wide, (ll, _))| {
+            let wide = slot_point(leader, *wide);
+            let Some(line) = along(behind, *ll) else {
+                return true;
+            };
+            let steps = ((wide - line).length() / WAY_STEP).ceil().max(1.0) as usize;
+            (0..=steps).all(|i| {
+                let p = line.lerp(wide, i as f64 / steps as f64);
+                map.clearance(p, need) >= need
             })
+        })
     }
 
     /// The clearance a follower needs at its wide slot not to touch: its footprint and a
