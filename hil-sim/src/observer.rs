@@ -132,6 +132,7 @@ impl AirObserver {
                     self.transformations.push(Transformation {
                         to,
                         start_s,
+                        end_s: None,
                         reason: match to {
                             Target::Line => Reason::PassageAhead,
                             Target::Wide => Reason::PassageBehind,
@@ -139,13 +140,20 @@ impl AirObserver {
                     });
                 }
                 // Each state of the transition tells its start again; the 8-bit blend tells it
-                // best mid-way, where the curve is steep.
+                // best mid-way, where the curve is steep. The station may slow a change down
+                // (`FormationManager::step`), so the start fitted later on is where the curve
+                // at full pace would have started: the record keeps the first half's.
                 if let Some((from, to, start_s)) = &mut self.transition {
                     let done = (blend - *from) / (to.blend() - *from);
+                    let last = self.transformations.last_mut();
                     if (0.1..=0.9).contains(&done) {
                         *start_s = t_s - inverse_smoothstep(done) * self.duration;
-                        if let Some(last) = self.transformations.last_mut() {
+                        if let Some(last) = last.filter(|_| done <= 0.5) {
                             last.start_s = *start_s;
+                        }
+                    } else if done >= 1.0 {
+                        if let Some(last) = last.filter(|l| l.end_s.is_none()) {
+                            last.end_s = Some(t_s);
                         }
                     }
                 }

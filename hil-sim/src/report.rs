@@ -116,7 +116,7 @@ pub fn transformations(
 ) -> Vec<TransformationReport> {
     done.iter()
         .map(|tr| {
-            let shaped = tr.start_s + transition_s;
+            let shaped = tr.end_s.unwrap_or(tr.start_s + transition_s);
             let back = rec
                 .samples
                 .iter()

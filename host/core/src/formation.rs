@@ -55,6 +55,9 @@ pub struct FormationSpec {
     pub footprint: f64,
     /// The speed a follower can use to reach a moving slot, m/s.
     pub slot_speed: f64,
+    /// The robots' top speed, m/s (a shape change's slot points stay under
+    /// `PACE_SPEED_OF_TOP` of it in the world: `FormationManager::step`).
+    pub top_speed: f64,
 }
 
 /// Which shape the formation is in or heading to.
@@ -97,6 +100,9 @@ impl Reason {
 pub struct Transformation {
     pub to: Target,
     pub start_s: f64,
+    /// When the slots reached the new shape (none yet: under way, or cut short by the
+    /// next change).
+    pub end_s: Option<f64>,
     pub reason: Reason,
 }
 
@@ -156,9 +162,20 @@ pub struct FormationManager {
     target: Target,
     blend: f64,
     from_blend: f64,
-    transition_start: Option<f64>,
+    transition: Option<Transition>,
     line_since: Option<f64>,
     events: Vec<Transformation>,
+}
+
+/// A shape change under way: how far along its smoothstep (0 … 1), and how fast it goes
+/// on from the last step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Transition {
+    progress: f64,
+    /// Progress per second from `at_s` on.
+    rate: f64,
+    /// The last step, s.
+    at_s: f64,
 }
 
 /// The leader's speed factor while the slots move.
@@ -173,11 +190,47 @@ const HYSTERESIS: f64 = 0.3;
 const SLOT_MARGIN: f64 = 0.1;
 /// Spacing of the points checked along a follower's way between its slots, m.
 const WAY_STEP: f64 = 0.25;
+/// How far ahead a shape change's pace looks, s (the station's period).
+const PACE_HORIZON_S: f64 = 0.1;
+/// The fastest a shape change moves a slot point in the world, as a fraction of the
+/// robots' top speed.
+const PACE_SPEED_OF_TOP: f64 = 1.0;
+/// A shape change slows for a follower this far off its reference, m …
+const LAG_FROM_M: f64 = 0.15;
+/// … and stands still for one this much further off, m.
+const LAG_SPAN_M: f64 = 0.15;
+/// Clearance beyond its footprint a follower's way to its reference needs for it to be
+/// waited for, m: its ultrasonic ring slows it for echoes up to 0.2 m beside it.
+const LAG_WAY_MARGIN: f64 = 0.25;
+/// The paces a shape change may go at, fastest first (fractions of its nominal rate).
+const PACES: [f64; 6] = [1.0, 0.8, 0.6, 0.4, 0.2, 0.0];
 
 /// Where slot (L, φ) is with the leader at `leader`: rigid to its pose.
 fn slot_point(leader: PlanPose, (l, phi): (f64, f64)) -> DVec2 {
     let a = leader.heading + phi;
     leader.position + DVec2::new(a.cos(), a.sin()) * l
+}
+
+/// A follower's reference point at `blend` with the leader at `leader`, as its control
+/// core makes it: between its wide slot point and the point its line distance back along
+/// the path the leader drove (`behind`, newest first, from the leader's position before
+/// it drove on by `advance`; the rigid line slot where the path is too short).
+fn reference(
+    leader: PlanPose,
+    wide: (f64, f64),
+    line: (f64, f64),
+    behind: &[DVec2],
+    advance: f64,
+    blend: f64,
+) -> DVec2 {
+    let w = slot_point(leader, wide);
+    let back = line.0 - advance;
+    let l = if back > 0.0 {
+        along(behind, back)
+    } else {
+        None
+    };
+    w.lerp(l.unwrap_or_else(|| slot_point(leader, line)), blend)
 }
 
 /// The point `s` along `path` from its first point, if the path is that long.
@@ -191,6 +244,14 @@ fn along(path: &[DVec2], s: f64) -> Option<DVec2> {
         left -= len;
     }
     None
+}
+
+/// What the station last heard from a follower: where it is, and how far off its
+/// reference it said it was, m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FollowerFix {
+    pub position: DVec2,
+    pub error: f64,
 }
 
 /// The leader's pose and how it drives: forward speed `v` (m/s), turn rate `omega` (rad/s).
@@ -253,7 +314,7 @@ impl FormationManager {
             target: Target::Wide,
             blend: 0.0,
             from_blend: 0.0,
-            transition_start: None,
+            transition: None,
             line_since: None,
             events: Vec::new(),
         }
@@ -352,10 +413,9 @@ impl FormationManager {
     /// follower can only follow by turning round (`paper-passage` seed 5: 1.5 rad/s at
     /// 0.02 m/s, a 5.9 s change; at full speed 3.5 s), so the leader keeps its pace.
     pub fn speed_factor(&self, now_s: f64) -> f64 {
-        let settling = self
-            .events
-            .last()
-            .is_some_and(|e| e.to == Target::Line && now_s < e.start_s + self.duration + SETTLE_S);
+        let settling = self.events.last().is_some_and(|e| {
+            e.to == Target::Line && e.end_s.is_none_or(|end| now_s < end + SETTLE_S)
+        });
         if settling {
             TRANSFORM_SPEED
         } else {
@@ -418,7 +478,7 @@ impl FormationManager {
         leader: LeaderMotion,
         ahead: &[DVec2],
         behind: &[DVec2],
-        followers: &[DVec2],
+        followers: &[Option<FollowerFix>],
         map: &Map,
     ) -> f64 {
         let need_in = self.spec.wide_width() + self.spec.margin;
@@ -449,39 +509,139 @@ impl FormationManager {
                     && !self.narrow_along(map, behind, length + EXIT_MARGIN, need_out)
                     && !self.wide_slot_blocked(map, leader, self.slot_need() + HYSTERESIS)
                     && self.widening_clear(map, leader.pose, behind, self.slot_need())
-                    && !followers.iter().any(|f| self.is_narrow(map, *f, need_out));
+                    && !followers
+                        .iter()
+                        .flatten()
+                        .any(|f| self.is_narrow(map, f.position, need_out));
                 if open {
                     self.switch(Target::Wide, now_s, Reason::PassageBehind);
                 }
             }
         }
-        if let Some(t0) = self.transition_start {
-            self.blend = self.blend_at(now_s);
-            if now_s - t0 >= self.duration {
-                self.transition_start = None;
+        if let Some(t) = self.transition {
+            let progress = (t.progress + t.rate * (now_s - t.at_s)).min(1.0);
+            self.blend = self.blend_of(progress);
+            if progress >= 1.0 {
+                self.transition = None;
+                if let Some(e) = self.events.last_mut() {
+                    e.end_s = Some(now_s);
+                }
+            } else {
+                let pace = self.pace(progress, leader, behind).min(self.lag_pace(
+                    leader.pose,
+                    behind,
+                    followers,
+                    map,
+                ));
+                let rate = pace / self.duration;
+                self.transition = Some(Transition {
+                    progress,
+                    rate,
+                    at_s: now_s,
+                });
             }
         }
         self.blend
+    }
+
+    /// The blend at `progress` along the change under way.
+    fn blend_of(&self, progress: f64) -> f64 {
+        transition_blend(self.from_blend, self.target, progress, 1.0)
+    }
+
+    /// The pace of the change under way from `progress` on, as a fraction of its nominal
+    /// rate: the fastest at which no follower's reference point moves faster than
+    /// `PACE_SPEED_OF_TOP` of the top speed in the world (or, if the leader's own motion already carries one
+    /// faster, the pace that carries it least fast). The duration bounds the slots' speed
+    /// relative to the leader; this adds the leader's motion and the trail's bends. A
+    /// 5-follower V's last slot, between the wide point and the point 7.5 m back along a
+    /// bent trail, moved at 1.1–1.4 m/s, and its follower fell 0.5–1.7 m behind.
+    fn pace(&self, progress: f64, leader: LeaderMotion, behind: &[DVec2]) -> f64 {
+        let h = PACE_HORIZON_S;
+        let next_pose = leader.after(h);
+        let advance = leader.v * h;
+        let b0 = self.blend_of(progress);
+        let speed_at = |pace: f64| {
+            let b1 = self.blend_of(progress + pace * h / self.duration);
+            self.wide
+                .iter()
+                .zip(&self.line)
+                .map(|(wide, line)| {
+                    let now = reference(leader.pose, *wide, *line, behind, 0.0, b0);
+                    let next = reference(next_pose, *wide, *line, behind, advance, b1);
+                    (next - now).length() / h
+                })
+                .fold(0.0, f64::max)
+        };
+        let mut best = (f64::INFINITY, 0.0);
+        for pace in PACES {
+            let speed = speed_at(pace);
+            if speed <= PACE_SPEED_OF_TOP * self.spec.top_speed {
+                return pace;
+            }
+            if speed < best.0 {
+                best = (speed, pace);
+            }
+        }
+        best.1
+    }
+
+    /// The pace the followers allow: slower as the one furthest off its reference falls
+    /// behind (`LAG_FROM_M` on; still at `LAG_FROM_M + LAG_SPAN_M`), among those whose
+    /// straight way to it is clear. One held behind a bin its reference has passed is not
+    /// waited for: only the change can take its reference off the bin's far side (waited
+    /// for, a 5-follower V's last stood behind a bin while the leader crept on to the goal).
+    fn lag_pace(
+        &self,
+        leader: PlanPose,
+        behind: &[DVec2],
+        followers: &[Option<FollowerFix>],
+        map: &Map,
+    ) -> f64 {
+        let need = self.spec.footprint + LAG_WAY_MARGIN;
+        let worst = followers
+            .iter()
+            .zip(self.wide.iter().zip(&self.line))
+            .filter_map(|(f, (wide, line))| {
+                let f = (*f)?;
+                if f.error <= LAG_FROM_M {
+                    return None;
+                }
+                let to = reference(leader, *wide, *line, behind, 0.0, self.blend);
+                let steps = ((to - f.position).length() / WAY_STEP).ceil().max(1.0) as usize;
+                let clear = (1..=steps).all(|i| {
+                    let p = f.position.lerp(to, i as f64 / steps as f64);
+                    map.clearance(p, need) >= need
+                });
+                clear.then_some(f.error)
+            })
+            .fold(0.0, f64::max);
+        (1.0 - (worst - LAG_FROM_M) / LAG_SPAN_M).clamp(0.0, 1.0)
     }
 
     /// The blend at `now_s` (station clock) as the transition under way makes it: what the
     /// followers extrapolate to between leader states ([`FormationManager::blend`] is its
     /// value at the last step).
     pub fn blend_at(&self, now_s: f64) -> f64 {
-        let Some(t0) = self.transition_start else {
+        let Some(t) = self.transition else {
             return self.blend;
         };
-        transition_blend(self.from_blend, self.target, now_s - t0, self.duration)
+        self.blend_of((t.progress + t.rate * (now_s - t.at_s)).min(1.0))
     }
 
     fn switch(&mut self, to: Target, now_s: f64, reason: Reason) {
         self.target = to;
         self.from_blend = self.blend;
-        self.transition_start = Some(now_s);
+        self.transition = Some(Transition {
+            progress: 0.0,
+            rate: 1.0 / self.duration,
+            at_s: now_s,
+        });
         self.line_since = None;
         self.events.push(Transformation {
             to,
             start_s: now_s,
+            end_s: None,
             reason,
         });
     }

@@ -1,6 +1,8 @@
 //! Passage detection and the slot transition on synthetic maps.
 
-use base_station::formation::{FormationManager, FormationSpec, LeaderMotion, Target, WideShape};
+use base_station::formation::{
+    FollowerFix, FormationManager, FormationSpec, LeaderMotion, Target, WideShape,
+};
 use base_station::geometry::Obstacle;
 use base_station::map::Map;
 use base_station::planner::PlanPose;
@@ -20,7 +22,21 @@ fn spec() -> FormationSpec {
         lookahead: 5.0,
         footprint: 0.3,
         slot_speed: 0.8,
+        top_speed: 1.0,
     }
+}
+
+/// Every follower on its slot point.
+fn at_their_slots(fm: &FormationManager, leader: PlanPose) -> Vec<Option<FollowerFix>> {
+    fm.slot_points(leader)
+        .into_iter()
+        .map(|position| {
+            Some(FollowerFix {
+                position,
+                error: 0.0,
+            })
+        })
+        .collect()
 }
 
 fn block(x0: f64, y0: f64, x1: f64, y1: f64) -> Obstacle {
@@ -81,7 +97,7 @@ fn drive_for(map: &Map, weave: f64, steps: usize) -> Run {
             position: DVec2::new(x, 10.0 + weave * (t * 0.8).cos()),
             heading,
         };
-        let followers = fm.slot_points(leader);
+        let followers = at_their_slots(&fm, leader);
         let before = fm.transformations().len();
         let (ahead, behind) = paths(leader, &driven);
         let motion = LeaderMotion {
@@ -173,7 +189,8 @@ fn slots_move_without_jumps() {
             v: 0.4,
             omega: 0.0,
         };
-        fm.step(t, motion, &ahead, &behind, &fm.slot_points(leader), &map);
+        let followers = at_their_slots(&fm, leader);
+        fm.step(t, motion, &ahead, &behind, &followers, &map);
         let pts = fm.slot_points(leader);
         if let Some(prev) = &last {
             for (a, b) in prev.iter().zip(&pts) {

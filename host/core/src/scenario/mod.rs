@@ -762,6 +762,7 @@ impl Scenario {
             lookahead: f.lookahead,
             footprint: self.robot.footprint_radius,
             slot_speed: SLOT_SPEED_OF_MAX * self.robot.max_speed,
+            top_speed: self.robot.max_speed,
         }
     }
 

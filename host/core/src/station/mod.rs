@@ -23,7 +23,7 @@ use fixes::FixWatch;
 pub use fixes::{FixChange, FixLimits};
 pub use smoothing::TurnRateSmoother;
 
-use crate::formation::{FormationManager, FormationSpec};
+use crate::formation::{FollowerFix, FormationManager, FormationSpec};
 use crate::map::Map;
 use crate::perception::Perception;
 use crate::planner::route::RouteParams;
@@ -491,16 +491,18 @@ impl BaseStation {
         }
     }
 
-    /// Follower positions from fresh telemetry, in slot order.
-    pub fn follower_positions(&self, now_ms: u32) -> Vec<DVec2> {
+    /// Each follower's (slot order) fresh position and tracking error.
+    fn follower_fixes(&self, now_ms: u32) -> Vec<Option<FollowerFix>> {
         self.cfg
             .followers
             .iter()
-            .filter_map(|id| self.fresh(*id, now_ms))
-            .filter_map(|s| s.telemetry)
-            .map(|t| {
+            .map(|id| {
+                let t = self.fresh(*id, now_ms)?.telemetry?;
                 let (x, y, _) = t.pose.to_si();
-                DVec2::new(x as f64, y as f64)
+                Some(FollowerFix {
+                    position: DVec2::new(x as f64, y as f64),
+                    error: t.tracking_error_mm as f64 / 1000.0,
+                })
             })
             .collect()
     }
@@ -571,7 +573,6 @@ impl BaseStation {
         }
 
         let now_s = now_ms as f64 / 1000.0;
-        let followers = self.follower_positions(now_ms);
         self.record_leader_path(leader.pose.position);
         self.planner
             .prepare(now_s, leader.pose.position, &self.world);
@@ -582,15 +583,11 @@ impl BaseStation {
         let behind: Vec<DVec2> = std::iter::once(leader.pose.position)
             .chain(self.driven.iter().rev().copied())
             .collect();
+        let fixes = self.follower_fixes(now_ms);
         let before = self.formation.transformations().len();
-        let blend = self.formation.step(
-            now_s,
-            leader.motion(),
-            &ahead,
-            &behind,
-            &followers,
-            &self.world,
-        );
+        let blend =
+            self.formation
+                .step(now_s, leader.motion(), &ahead, &behind, &fixes, &self.world);
         if self.formation.transformations().len() > before {
             let to = self.formation.target();
             tracing::info!(?to, "formation change");
@@ -637,14 +634,7 @@ impl BaseStation {
             tracing::info!("fleet ready");
             self.events.push(StationEvent::FleetReady { at_ms: now_ms });
         }
-        let worst = self
-            .cfg
-            .followers
-            .iter()
-            .filter_map(|id| self.fresh(*id, now_ms))
-            .filter_map(|s| s.telemetry)
-            .map(|t| t.tracking_error_mm as f64 / 1000.0)
-            .fold(0.0, f64::max);
+        let worst = fixes.iter().flatten().map(|f| f.error).fold(0.0, f64::max);
         let over = worst - self.cfg.wait_for_followers_above;
         let waiting = if over > 0.0 {
             (1.0 - over / 0.5).max(0.2)
