@@ -174,6 +174,8 @@ struct Transition {
     progress: f64,
     /// Progress per second from `at_s` on.
     rate: f64,
+    /// The pace the followers allowed at the last step (`lag_pace`, slewed).
+    waiting: f64,
     /// The last step, s.
     at_s: f64,
 }
@@ -199,6 +201,9 @@ const PACE_SPEED_OF_TOP: f64 = 1.0;
 const LAG_FROM_M: f64 = 0.15;
 /// … and stands still for one this much further off, m.
 const LAG_SPAN_M: f64 = 0.15;
+/// How fast the pace the followers allow may change, per second (from full pace to a
+/// stop in 1 s: a slot slows as a follower can).
+const PACE_SLEW_PER_S: f64 = 2.0;
 /// Clearance beyond its footprint a follower's way to its reference needs for it to be
 /// waited for, m: its ultrasonic ring slows it for echoes up to 0.2 m beside it.
 const LAG_WAY_MARGIN: f64 = 0.25;
@@ -527,16 +532,16 @@ impl FormationManager {
                     e.end_s = Some(now_s);
                 }
             } else {
-                let pace = self.pace(progress, leader, behind).min(self.lag_pace(
-                    leader.pose,
-                    behind,
-                    followers,
-                    map,
-                ));
-                let rate = pace / self.duration;
+                // The followers' pace changes gently: a slot that stopped at once left a
+                // follower driving at it at 0.57 m/s 0.39 m beyond it.
+                let slew = PACE_SLEW_PER_S * (now_s - t.at_s);
+                let lag = self.lag_pace(leader.pose, behind, followers, map);
+                let waiting = lag.clamp(t.waiting - slew, t.waiting + slew);
+                let pace = self.pace(progress, leader, behind).min(waiting);
                 self.transition = Some(Transition {
                     progress,
-                    rate,
+                    rate: pace / self.duration,
+                    waiting,
                     at_s: now_s,
                 });
             }
@@ -635,6 +640,7 @@ impl FormationManager {
         self.transition = Some(Transition {
             progress: 0.0,
             rate: 1.0 / self.duration,
+            waiting: 1.0,
             at_s: now_s,
         });
         self.line_since = None;
