@@ -246,3 +246,111 @@ fn a_bin_on_the_way_back_to_the_wide_shape_is_seen() {
     assert!(!fm.widening_clear(&bin, leader.pose, &behind, need));
     assert!(fm.widening_clear(&Map::new(vec![]), leader.pose, &behind, need));
 }
+
+/// Drives the leader at the 3 m gap (0.4 m/s along y = 10) until 4 s into the change
+/// into the line; follower 1 reports itself at `hold` (where it stands, from the change's
+/// start on) or at its slot point. Returns the blend then, when the change started and
+/// follower 1's slot point then.
+fn into_the_line(hold: Option<DVec2>, extra: Option<Obstacle>) -> (f64, f64, DVec2) {
+    let mut fm = FormationManager::new(spec());
+    let mut obstacles = vec![block(12.0, -10.0, 18.0, 8.5), block(12.0, 11.5, 18.0, 30.0)];
+    obstacles.extend(extra);
+    let map = Map::new(obstacles);
+    let mut driven: Vec<DVec2> = Vec::new();
+    let mut started: Option<(f64, DVec2)> = None;
+    for i in 0..400 {
+        let t = i as f64 * 0.1;
+        let leader = PlanPose {
+            position: DVec2::new(2.0 + 0.4 * t, 10.0),
+            heading: 0.0,
+        };
+        let mut followers = at_their_slots(&fm, leader);
+        if let (Some(at), Some(_)) = (hold, started) {
+            followers[0] = Some(FollowerFix {
+                position: at,
+                error: (at - fm.slot_points(leader)[0]).length(),
+            });
+        }
+        let (ahead, behind) = paths(leader, &driven);
+        let motion = LeaderMotion {
+            pose: leader,
+            v: 0.4,
+            omega: 0.0,
+        };
+        fm.step(t, motion, &ahead, &behind, &followers, &map);
+        driven.push(leader.position);
+        if started.is_none() && fm.target() == Target::Line {
+            started = Some((t, fm.slot_points(leader)[0]));
+        }
+        if let Some((t0, slot)) = started.filter(|(t0, _)| t - t0 >= 4.0) {
+            return (fm.blend(), t0, slot);
+        }
+    }
+    panic!("no change into the line");
+}
+
+/// A follower falling behind on a clear way is waited for; one held behind a bin is not:
+/// only the change takes its reference off the bin's far side.
+#[test]
+fn a_shape_change_waits_for_a_follower_falling_behind_on_a_clear_way() {
+    let (on_time, t0, slot) = into_the_line(None, None);
+    assert!(on_time > 0.9, "{on_time}");
+    // Follower 1 stands 3 m behind and 1.5 m out from where its slot was at the start.
+    let at = slot + DVec2::new(-3.0, 1.5);
+    let (waited, t1, _) = into_the_line(Some(at), None);
+    assert_eq!(t0, t1);
+    assert!(waited < 0.1, "{waited}");
+    // A bin 0.6 m from it toward its slot: it is held, and the change goes on.
+    let bin = Obstacle::Circle {
+        center: at + (slot - at).normalize() * 0.6,
+        radius: 0.3,
+    };
+    let (held, t2, _) = into_the_line(Some(at), Some(bin));
+    assert_eq!(t0, t2);
+    assert!(held > 0.9, "{held}");
+}
+
+/// Into the line the rear slots move forward relative to the leader at up to
+/// `slot_speed`, and the leader's own speed comes on top: the change slows so that no
+/// slot point moves faster than the top speed in the world.
+#[test]
+fn a_shape_change_keeps_every_slot_point_under_the_top_speed() {
+    // The rear slots' 4.5 m across at `slot_speed` 0.8 m/s, with the leader's 0.4 m/s
+    // forward: 0.89 m/s at full pace.
+    let s = FormationSpec {
+        followers: 5,
+        top_speed: 0.85,
+        ..spec()
+    };
+    let mut fm = FormationManager::new(s.clone());
+    let map = gap(3.0);
+    let mut driven: Vec<DVec2> = Vec::new();
+    let mut last: Option<Vec<DVec2>> = None;
+    let mut fastest = 0.0f64;
+    for i in 0..600 {
+        let t = i as f64 * 0.1;
+        let leader = PlanPose {
+            position: DVec2::new(2.0 + 0.4 * t, 10.0),
+            heading: 0.0,
+        };
+        let (ahead, behind) = paths(leader, &driven);
+        let motion = LeaderMotion {
+            pose: leader,
+            v: 0.4,
+            omega: 0.0,
+        };
+        let followers = at_their_slots(&fm, leader);
+        fm.step(t, motion, &ahead, &behind, &followers, &map);
+        driven.push(leader.position);
+        let points = fm.slot_points(leader);
+        if let Some(prev) = &last {
+            for (a, b) in prev.iter().zip(&points) {
+                fastest = fastest.max((*b - *a).length() / 0.1);
+            }
+        }
+        last = Some(points);
+    }
+    let changes = fm.transformations();
+    assert!(changes[0].end_s.is_some(), "{changes:?}");
+    assert!(fastest <= s.top_speed + 0.02, "{fastest}");
+}
