@@ -251,12 +251,13 @@ fn along(path: &[DVec2], s: f64) -> Option<DVec2> {
     None
 }
 
-/// What the station last heard from a follower: where it is, and how far off its
-/// reference it said it was, m.
+/// What the station last heard from a follower: where it is, how far off its reference
+/// it said it was (m), and whether it has joined the formation yet.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FollowerFix {
     pub position: DVec2,
     pub error: f64,
+    pub joined: bool,
 }
 
 /// The leader's pose and how it drives: forward speed `v` (m/s), turn rate `omega` (rad/s).
@@ -592,8 +593,10 @@ impl FormationManager {
     }
 
     /// The pace the followers allow: slower as the one furthest off its reference falls
-    /// behind (`LAG_FROM_M` on; still at `LAG_FROM_M + LAG_SPAN_M`), among those whose
-    /// straight way to it is clear. One held behind a bin its reference has passed is not
+    /// behind (`LAG_FROM_M` on; still at `LAG_FROM_M + LAG_SPAN_M`), among those that have
+    /// joined and whose straight way to it is clear. One still joining is not waited for
+    /// (a 7-follower line starting as the V was asked for was held toward the V's slots,
+    /// 0.12 m from a street's wall). One held behind a bin its reference has passed is not
     /// waited for: only the change can take its reference off the bin's far side (waited
     /// for, a 5-follower V's last stood behind a bin while the leader crept on to the goal).
     fn lag_pace(
@@ -608,10 +611,7 @@ impl FormationManager {
             .iter()
             .zip(self.wide.iter().zip(&self.line))
             .filter_map(|(f, (wide, line))| {
-                let f = (*f)?;
-                if f.error <= LAG_FROM_M {
-                    return None;
-                }
+                let f = (*f).filter(|f| f.joined && f.error > LAG_FROM_M)?;
                 let to = reference(leader, *wide, *line, behind, 0.0, self.blend);
                 let steps = ((to - f.position).length() / WAY_STEP).ceil().max(1.0) as usize;
                 let clear = (1..=steps).all(|i| {

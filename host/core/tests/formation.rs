@@ -34,6 +34,7 @@ fn at_their_slots(fm: &FormationManager, leader: PlanPose) -> Vec<Option<Followe
             Some(FollowerFix {
                 position,
                 error: 0.0,
+                joined: true,
             })
         })
         .collect()
@@ -269,6 +270,7 @@ fn into_the_line(hold: Option<DVec2>, extra: Option<Obstacle>) -> (f64, f64, DVe
             followers[0] = Some(FollowerFix {
                 position: at,
                 error: (at - fm.slot_points(leader)[0]).length(),
+                joined: true,
             });
         }
         let (ahead, behind) = paths(leader, &driven);

@@ -66,7 +66,13 @@ pub struct RobotStatus {
     pub received_ms: u32,
     /// Station clock at which the telemetry's pose was valid.
     pub pose_at_ms: u32,
+    /// Whether it has been within `JOINED_BELOW_MM` of its reference since it linked.
+    pub joined: bool,
 }
+
+/// A follower this close to its reference has joined the formation, mm (as the report
+/// counts joining).
+const JOINED_BELOW_MM: u16 = 100;
 
 /// What the operator tells the fleet (the console's buttons).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -407,6 +413,9 @@ impl BaseStation {
                                 }
                             }
                             status.telemetry = Some(t);
+                            status.joined |=
+                                matches!(t.mode, RobotMode::InFormation | RobotMode::Transforming)
+                                    && t.tracking_error_mm < JOINED_BELOW_MM;
                             status.received_ms = now_ms;
                             // Robot clock → ours; never later than now.
                             let at = header.time_ms.wrapping_sub(offset as u32);
@@ -497,11 +506,13 @@ impl BaseStation {
             .followers
             .iter()
             .map(|id| {
-                let t = self.fresh(*id, now_ms)?.telemetry?;
+                let status = self.fresh(*id, now_ms)?;
+                let t = status.telemetry?;
                 let (x, y, _) = t.pose.to_si();
                 Some(FollowerFix {
                     position: DVec2::new(x as f64, y as f64),
                     error: t.tracking_error_mm as f64 / 1000.0,
+                    joined: status.joined,
                 })
             })
             .collect()
