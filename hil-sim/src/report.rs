@@ -25,6 +25,10 @@ pub struct TransformationReport {
     /// From the start until the slots reached the new shape and every follower is back
     /// under 0.1 m; null if that never happened.
     pub duration_s: Option<f64>,
+    /// From the start until the slots reached the new shape (later than the nominal
+    /// change where the station slowed it for its followers); null if the next change
+    /// cut it short.
+    pub shaped_s: Option<f64>,
     /// Why: `passage_ahead` (into the line), `passage_behind` (back to the wide shape).
     pub reason: String,
 }
@@ -129,6 +133,7 @@ pub fn transformations(
                 },
                 start_s: tr.start_s,
                 duration_s: back,
+                shaped_s: tr.end_s.map(|end| end - tr.start_s),
                 reason: tr.reason.name().to_string(),
             }
         })
@@ -266,7 +271,8 @@ pub fn build_report(
     let busy: Vec<(f64, f64)> = transformations
         .iter()
         .map(|t| {
-            let end = t.start_s + transition.max(t.duration_s.unwrap_or(0.0));
+            let shaped = t.shaped_s.unwrap_or(transition);
+            let end = t.start_s + shaped.max(t.duration_s.unwrap_or(0.0));
             (t.start_s, end + 3.0)
         })
         .collect();
@@ -396,6 +402,7 @@ pub fn build_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use base_station::formation::Reason;
 
     /// The leader at 0.4 m/s along `path(t)`, one sample per 0.1 s.
     fn samples(
@@ -424,6 +431,30 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// A change the station slowed: it lasts until its slots arrived (`end_s`), not its
+    /// nominal duration, though a follower is back under 0.1 m before.
+    #[test]
+    fn a_slowed_change_lasts_until_its_slots_arrived() {
+        let paper = include_str!("../../scenarios/paper-passage.toml");
+        let mut rec = Recorder::new(&Scenario::parse(paper, "paper-passage").unwrap());
+        rec.samples = samples(|t| (0.4 * t, 0.0), |_| "wide");
+        for s in &mut rec.samples {
+            s.robots[0].error = Some(if (2.0..4.0).contains(&s.t) { 0.2 } else { 0.05 });
+        }
+        let change = |end_s| Transformation {
+            to: Target::Line,
+            start_s: 1.0,
+            end_s,
+            reason: Reason::PassageAhead,
+        };
+        let nominal = transformations(&rec, &[change(None)], "v", 4.0);
+        assert_eq!(nominal[0].shaped_s, None);
+        assert!((nominal[0].duration_s.unwrap() - 4.0).abs() < 1e-9);
+        let slowed = transformations(&rec, &[change(Some(11.0))], "v", 4.0);
+        assert_eq!(slowed[0].shaped_s, Some(10.0));
+        assert!((slowed[0].duration_s.unwrap() - 10.0).abs() < 1e-9);
     }
 
     #[test]

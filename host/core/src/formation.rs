@@ -24,7 +24,13 @@
 //!   fall back: see `speed_factor`).
 //! - **Smooth**: the blend (0 wide … 1 line) follows a smoothstep over `transition_s`, so
 //!   the followers' slot points never jump; longer when a slot moves far, so that none
-//!   moves faster than a follower can drive (`transition_duration`).
+//!   moves faster than a follower can drive relative to the leader (`transition_duration`).
+//! - **At the followers' pace**: the smoothstep's progress slows where a reference point
+//!   (between the wide slot and the point its line distance back along the leader's path)
+//!   would move faster than the robots' top speed in the world, the leader's motion and
+//!   the path's bends included (`pace`), and stands still while a follower that has joined
+//!   falls behind with its way to its reference clear (`lag_pace`); a follower held behind
+//!   an obstacle is not waited for.
 
 use glam::DVec2;
 
