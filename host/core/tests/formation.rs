@@ -53,10 +53,29 @@ fn block(x0: f64, y0: f64, x1: f64, y1: f64) -> Obstacle {
 
 /// A wall across y with a gap of `width` centred on y = 10, x ∈ [12, 18].
 fn gap(width: f64) -> Map {
-    Map::new(vec![
+    gap_and(width, None)
+}
+
+/// The gap, and an obstacle more.
+fn gap_and(width: f64, extra: Option<Obstacle>) -> Map {
+    let mut obstacles = vec![
         block(12.0, -10.0, 18.0, 10.0 - width / 2.0),
         block(12.0, 10.0 + width / 2.0, 18.0, 30.0),
-    ])
+    ];
+    obstacles.extend(extra);
+    Map::new(obstacles)
+}
+
+/// The leader at `t` s, driving along y = 10 from x = 2 at 0.4 m/s.
+fn straight_along_the_street(t: f64) -> LeaderMotion {
+    LeaderMotion {
+        pose: PlanPose {
+            position: DVec2::new(2.0 + 0.4 * t, 10.0),
+            heading: 0.0,
+        },
+        v: 0.4,
+        omega: 0.0,
+    }
 }
 
 struct Run {
@@ -180,16 +199,9 @@ fn slots_move_without_jumps() {
     let mut last: Option<Vec<DVec2>> = None;
     for i in 0..600 {
         let t = i as f64 * 0.1;
-        let leader = PlanPose {
-            position: DVec2::new(2.0 + 0.4 * t, 10.0),
-            heading: 0.0,
-        };
+        let motion = straight_along_the_street(t);
+        let leader = motion.pose;
         let (ahead, behind) = paths(leader, &[]);
-        let motion = LeaderMotion {
-            pose: leader,
-            v: 0.4,
-            omega: 0.0,
-        };
         let followers = at_their_slots(&fm, leader);
         fm.step(t, motion, &ahead, &behind, &followers, &map);
         let pts = fm.slot_points(leader);
@@ -254,17 +266,13 @@ fn a_bin_on_the_way_back_to_the_wide_shape_is_seen() {
 /// follower 1's slot point then.
 fn into_the_line(hold: Option<DVec2>, extra: Option<Obstacle>) -> (f64, f64, DVec2) {
     let mut fm = FormationManager::new(spec());
-    let mut obstacles = vec![block(12.0, -10.0, 18.0, 8.5), block(12.0, 11.5, 18.0, 30.0)];
-    obstacles.extend(extra);
-    let map = Map::new(obstacles);
+    let map = gap_and(3.0, extra);
     let mut driven: Vec<DVec2> = Vec::new();
     let mut started: Option<(f64, DVec2)> = None;
     for i in 0..400 {
         let t = i as f64 * 0.1;
-        let leader = PlanPose {
-            position: DVec2::new(2.0 + 0.4 * t, 10.0),
-            heading: 0.0,
-        };
+        let motion = straight_along_the_street(t);
+        let leader = motion.pose;
         let mut followers = at_their_slots(&fm, leader);
         if let (Some(at), Some(_)) = (hold, started) {
             followers[0] = Some(FollowerFix {
@@ -274,11 +282,6 @@ fn into_the_line(hold: Option<DVec2>, extra: Option<Obstacle>) -> (f64, f64, DVe
             });
         }
         let (ahead, behind) = paths(leader, &driven);
-        let motion = LeaderMotion {
-            pose: leader,
-            v: 0.4,
-            omega: 0.0,
-        };
         fm.step(t, motion, &ahead, &behind, &followers, &map);
         driven.push(leader.position);
         if started.is_none() && fm.target() == Target::Line {
@@ -331,16 +334,9 @@ fn a_shape_change_keeps_every_slot_point_under_the_top_speed() {
     let mut fastest = 0.0f64;
     for i in 0..600 {
         let t = i as f64 * 0.1;
-        let leader = PlanPose {
-            position: DVec2::new(2.0 + 0.4 * t, 10.0),
-            heading: 0.0,
-        };
+        let motion = straight_along_the_street(t);
+        let leader = motion.pose;
         let (ahead, behind) = paths(leader, &driven);
-        let motion = LeaderMotion {
-            pose: leader,
-            v: 0.4,
-            omega: 0.0,
-        };
         let followers = at_their_slots(&fm, leader);
         fm.step(t, motion, &ahead, &behind, &followers, &map);
         driven.push(leader.position);
