@@ -186,6 +186,13 @@ struct Transition {
     at_s: f64,
 }
 
+impl Transition {
+    /// Its progress at `now_s`, going on at the last step's rate.
+    fn progress_at(&self, now_s: f64) -> f64 {
+        (self.progress + self.rate * (now_s - self.at_s)).min(1.0)
+    }
+}
+
 /// The leader's speed factor while the slots move.
 pub const TRANSFORM_SPEED: f64 = 0.4;
 /// Slow time after the slots reached the new shape, s.
@@ -208,7 +215,7 @@ const LAG_FROM_M: f64 = 0.15;
 /// … and stands still for one this much further off, m.
 const LAG_SPAN_M: f64 = 0.15;
 /// How fast the pace the followers allow may change, per second (from full pace to a
-/// stop in 1 s: a slot slows as a follower can).
+/// stop in 0.5 s: a slot slows as a follower can).
 const PACE_SLEW_PER_S: f64 = 2.0;
 /// Clearance beyond its footprint a follower's way to its reference needs for it to be
 /// waited for, m: its ultrasonic ring slows it for echoes up to 0.2 m beside it.
@@ -260,7 +267,7 @@ fn along(path: &[DVec2], s: f64) -> Option<DVec2> {
 /// What the station last heard from a follower: where it is, how far off its reference
 /// it said it was (m), and whether it has joined the formation yet.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FollowerFix {
+pub struct FollowerStatus {
     pub position: DVec2,
     pub error: f64,
     pub joined: bool,
@@ -490,7 +497,7 @@ impl FormationManager {
         leader: LeaderMotion,
         ahead: &[DVec2],
         behind: &[DVec2],
-        followers: &[Option<FollowerFix>],
+        followers: &[Option<FollowerStatus>],
         map: &Map,
     ) -> f64 {
         let need_in = self.spec.wide_width() + self.spec.margin;
@@ -531,7 +538,7 @@ impl FormationManager {
             }
         }
         if let Some(t) = self.transition {
-            let progress = (t.progress + t.rate * (now_s - t.at_s)).min(1.0);
+            let progress = t.progress_at(now_s);
             self.blend = self.blend_of(progress);
             if progress >= 1.0 {
                 self.transition = None;
@@ -563,11 +570,12 @@ impl FormationManager {
 
     /// The pace of the change under way from `progress` on, as a fraction of its nominal
     /// rate: the fastest at which no follower's reference point moves faster than
-    /// `PACE_SPEED_OF_TOP` of the top speed in the world (or, if the leader's own motion already carries one
-    /// faster, the pace that carries it least fast). The duration bounds the slots' speed
-    /// relative to the leader; this adds the leader's motion and the trail's bends. A
-    /// 5-follower V's last slot, between the wide point and the point 7.5 m back along a
-    /// bent trail, moved at 1.1–1.4 m/s, and its follower fell 0.5–1.7 m behind.
+    /// `PACE_SPEED_OF_TOP` of the top speed in the world (or, if the leader's own motion
+    /// already carries one faster, the pace that carries it least fast). The duration
+    /// bounds the slots' speed relative to the leader; this adds the leader's motion and
+    /// the trail's bends. A 5-follower V's last slot, between the wide point and the point
+    /// 7.5 m back along a bent trail, moved at 1.1–1.4 m/s, and its follower fell 0.5–1.7 m
+    /// behind.
     fn pace(&self, progress: f64, leader: LeaderMotion, behind: &[DVec2]) -> f64 {
         let h = PACE_HORIZON_S;
         let next_pose = leader.after(h);
@@ -609,7 +617,7 @@ impl FormationManager {
         &self,
         leader: PlanPose,
         behind: &[DVec2],
-        followers: &[Option<FollowerFix>],
+        followers: &[Option<FollowerStatus>],
         map: &Map,
     ) -> f64 {
         let need = self.spec.footprint + LAG_WAY_MARGIN;
@@ -637,7 +645,7 @@ impl FormationManager {
         let Some(t) = self.transition else {
             return self.blend;
         };
-        self.blend_of((t.progress + t.rate * (now_s - t.at_s)).min(1.0))
+        self.blend_of(t.progress_at(now_s))
     }
 
     fn switch(&mut self, to: Target, now_s: f64, reason: Reason) {

@@ -1,7 +1,7 @@
 //! Passage detection and the slot transition on synthetic maps.
 
 use base_station::formation::{
-    FollowerFix, FormationManager, FormationSpec, LeaderMotion, Target, WideShape,
+    FollowerStatus, FormationManager, FormationSpec, LeaderMotion, Target, WideShape,
 };
 use base_station::geometry::Obstacle;
 use base_station::map::Map;
@@ -27,11 +27,11 @@ fn spec() -> FormationSpec {
 }
 
 /// Every follower on its slot point.
-fn at_their_slots(fm: &FormationManager, leader: PlanPose) -> Vec<Option<FollowerFix>> {
+fn at_their_slots(fm: &FormationManager, leader: PlanPose) -> Vec<Option<FollowerStatus>> {
     fm.slot_points(leader)
         .into_iter()
         .map(|position| {
-            Some(FollowerFix {
+            Some(FollowerStatus {
                 position,
                 error: 0.0,
                 joined: true,
@@ -275,7 +275,7 @@ fn into_the_line(hold: Option<DVec2>, extra: Option<Obstacle>) -> (f64, f64, DVe
         let leader = motion.pose;
         let mut followers = at_their_slots(&fm, leader);
         if let (Some(at), Some(_)) = (hold, started) {
-            followers[0] = Some(FollowerFix {
+            followers[0] = Some(FollowerStatus {
                 position: at,
                 error: (at - fm.slot_points(leader)[0]).length(),
                 joined: true,

@@ -23,7 +23,7 @@ use fixes::FixWatch;
 pub use fixes::{FixChange, FixLimits};
 pub use smoothing::TurnRateSmoother;
 
-use crate::formation::{FollowerFix, FormationManager, FormationSpec};
+use crate::formation::{FollowerStatus, FormationManager, FormationSpec};
 use crate::map::Map;
 use crate::perception::Perception;
 use crate::planner::route::RouteParams;
@@ -501,7 +501,7 @@ impl BaseStation {
     }
 
     /// Each follower's (slot order) fresh position and tracking error.
-    fn follower_fixes(&self, now_ms: u32) -> Vec<Option<FollowerFix>> {
+    fn follower_statuses(&self, now_ms: u32) -> Vec<Option<FollowerStatus>> {
         self.cfg
             .followers
             .iter()
@@ -509,7 +509,7 @@ impl BaseStation {
                 let status = self.fresh(*id, now_ms)?;
                 let t = status.telemetry?;
                 let (x, y, _) = t.pose.to_si();
-                Some(FollowerFix {
+                Some(FollowerStatus {
                     position: DVec2::new(x as f64, y as f64),
                     error: t.tracking_error_mm as f64 / 1000.0,
                     joined: status.joined,
@@ -594,11 +594,16 @@ impl BaseStation {
         let behind: Vec<DVec2> = std::iter::once(leader.pose.position)
             .chain(self.driven.iter().rev().copied())
             .collect();
-        let fixes = self.follower_fixes(now_ms);
+        let statuses = self.follower_statuses(now_ms);
         let before = self.formation.transformations().len();
-        let blend =
-            self.formation
-                .step(now_s, leader.motion(), &ahead, &behind, &fixes, &self.world);
+        let blend = self.formation.step(
+            now_s,
+            leader.motion(),
+            &ahead,
+            &behind,
+            &statuses,
+            &self.world,
+        );
         if self.formation.transformations().len() > before {
             let to = self.formation.target();
             tracing::info!(?to, "formation change");
@@ -645,7 +650,11 @@ impl BaseStation {
             tracing::info!("fleet ready");
             self.events.push(StationEvent::FleetReady { at_ms: now_ms });
         }
-        let worst = fixes.iter().flatten().map(|f| f.error).fold(0.0, f64::max);
+        let worst = statuses
+            .iter()
+            .flatten()
+            .map(|f| f.error)
+            .fold(0.0, f64::max);
         let over = worst - self.cfg.wait_for_followers_above;
         let waiting = if over > 0.0 {
             (1.0 - over / 0.5).max(0.2)
