@@ -10,7 +10,7 @@
 
 use std::collections::HashSet;
 
-use base_station::formation::Target;
+use base_station::formation::{back_along, Target};
 use base_station::map::Map;
 use base_station::scenario::{Role, Scenario};
 use base_station::station::BaseStation;
@@ -129,26 +129,7 @@ impl DrivenPath {
     /// `heading` always, as until 2026-12-02, swung that stretch sideways once the leader
     /// turned: a 7-follower line's last slot 0.5 m off the street it drove down.)
     pub fn behind(&self, leader: DVec2, heading: f64, s: f64) -> DVec2 {
-        let mut remaining = s;
-        let mut cur = leader;
-        for &p in self.points.iter().rev() {
-            let seg = (p - cur).length();
-            if seg < 1e-9 {
-                continue;
-            }
-            if seg >= remaining {
-                return cur + (p - cur) * (remaining / seg);
-            }
-            remaining -= seg;
-            cur = p;
-        }
-        let chord = cur - leader;
-        let back = if s - remaining > 0.5 && chord.length() > 0.25 {
-            chord.normalize()
-        } else {
-            -DVec2::new(heading.cos(), heading.sin())
-        };
-        cur + back * remaining
+        back_along(leader, heading, self.points.iter().rev().copied(), s)
     }
 }
 

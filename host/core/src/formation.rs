@@ -229,10 +229,43 @@ fn slot_point(leader: PlanPose, (l, phi): (f64, f64)) -> DVec2 {
     leader.position + DVec2::new(a.cos(), a.sin()) * l
 }
 
-/// A follower's reference point at `blend` with the leader at `leader`, as its control
-/// core makes it: between its wide slot point and the point its line distance back along
-/// the path the leader drove (`behind`, newest first, from the leader's position before
-/// it drove on by `advance`; the rigid line slot where the path is too short).
+/// The point `s` back along the path the leader drove (`newest_first`) from the leader at
+/// `leader` heading `heading`, as the control core's trail has it
+/// (`control_core::follower::Trail::behind`): before the path began, on along the chord
+/// from the leader to the path's start, or back along the heading while less than half a
+/// metre is recorded.
+pub fn back_along(
+    leader: DVec2,
+    heading: f64,
+    newest_first: impl IntoIterator<Item = DVec2>,
+    s: f64,
+) -> DVec2 {
+    let mut remaining = s;
+    let mut cur = leader;
+    for p in newest_first {
+        let seg = (p - cur).length();
+        if seg < 1e-9 {
+            continue;
+        }
+        if seg >= remaining {
+            return cur + (p - cur) * (remaining / seg);
+        }
+        remaining -= seg;
+        cur = p;
+    }
+    let chord = cur - leader;
+    let back = if s - remaining > 0.5 && chord.length() > 0.25 {
+        chord.normalize()
+    } else {
+        -DVec2::new(heading.cos(), heading.sin())
+    };
+    cur + back * remaining
+}
+
+/// A follower's reference point at `blend`, as its control core makes it: between its
+/// wide slot point with the leader at `leader` and the point its line distance back along
+/// the path the leader drove (`behind`: newest first, from `behind[0]`, where the leader
+/// was before it drove on by `advance`).
 fn reference(
     leader: PlanPose,
     wide: (f64, f64),
@@ -242,13 +275,14 @@ fn reference(
     blend: f64,
 ) -> DVec2 {
     let w = slot_point(leader, wide);
-    let back = line.0 - advance;
-    let l = if back > 0.0 {
-        along(behind, back)
-    } else {
-        None
-    };
-    w.lerp(l.unwrap_or_else(|| slot_point(leader, line)), blend)
+    let from = behind.first().copied().unwrap_or(leader.position);
+    let l = back_along(
+        from,
+        leader.heading,
+        behind.iter().copied(),
+        (line.0 - advance).max(0.0),
+    );
+    w.lerp(l, blend)
 }
 
 /// The point `s` along `path` from its first point, if the path is that long.
