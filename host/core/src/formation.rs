@@ -262,19 +262,18 @@ pub fn back_along(
     cur + back * remaining
 }
 
-/// A follower's reference point at `blend`, as its control core makes it: between its
-/// wide slot point with the leader at `leader` and the point its line distance back along
-/// the path the leader drove (`behind`: newest first, from `behind[0]`, where the leader
-/// was before it drove on by `advance`).
-fn reference(
+/// The two ends a follower's reference point moves between, as its control core makes
+/// them: its wide slot point with the leader at `leader`, and the point its line distance
+/// back along the path the leader drove (`behind`: newest first, from `behind[0]`, where
+/// the leader was before it drove on by `advance`). At blend b the reference is
+/// `wide.lerp(line, b)`.
+fn reference_ends(
     leader: PlanPose,
     wide: (f64, f64),
     line: (f64, f64),
     behind: &[DVec2],
     advance: f64,
-    blend: f64,
-) -> DVec2 {
-    let w = slot_point(leader, wide);
+) -> (DVec2, DVec2) {
     let from = behind.first().copied().unwrap_or(leader.position);
     let l = back_along(
         from,
@@ -282,7 +281,14 @@ fn reference(
         behind.iter().copied(),
         (line.0 - advance).max(0.0),
     );
-    w.lerp(l, blend)
+    (slot_point(leader, wide), l)
+}
+
+/// Points from `from` to `to` at most `WAY_STEP` apart, both ends included: where a
+/// follower crossing between them would be.
+fn way_points(from: DVec2, to: DVec2) -> impl Iterator<Item = DVec2> {
+    let steps = ((to - from).length() / WAY_STEP).ceil().max(1.0) as usize;
+    (0..=steps).map(move |i| from.lerp(to, i as f64 / steps as f64))
 }
 
 /// The point `s` along `path` from its first point, if the path is that long.
@@ -508,11 +514,7 @@ impl FormationManager {
             let Some(line) = along(behind, *ll) else {
                 return true;
             };
-            let steps = ((wide - line).length() / WAY_STEP).ceil().max(1.0) as usize;
-            (0..=steps).all(|i| {
-                let p = line.lerp(wide, i as f64 / steps as f64);
-                map.clearance(p, need) >= need
-            })
+            way_points(line, wide).all(|p| map.clearance(p, need) >= need)
         })
     }
 
@@ -615,16 +617,22 @@ impl FormationManager {
         let next_pose = leader.after(h);
         let advance = leader.v * h;
         let b0 = self.blend_of(progress);
+        // Per follower: its reference now, and the ends it moves between 0.1 s on.
+        let moves: Vec<(DVec2, (DVec2, DVec2))> = self
+            .wide
+            .iter()
+            .zip(&self.line)
+            .map(|(wide, line)| {
+                let (w, l) = reference_ends(leader.pose, *wide, *line, behind, 0.0);
+                let next = reference_ends(next_pose, *wide, *line, behind, advance);
+                (w.lerp(l, b0), next)
+            })
+            .collect();
         let speed_at = |pace: f64| {
             let b1 = self.blend_of(progress + pace * h / self.duration);
-            self.wide
+            moves
                 .iter()
-                .zip(&self.line)
-                .map(|(wide, line)| {
-                    let now = reference(leader.pose, *wide, *line, behind, 0.0, b0);
-                    let next = reference(next_pose, *wide, *line, behind, advance, b1);
-                    (next - now).length() / h
-                })
+                .map(|(now, (w, l))| (w.lerp(*l, b1) - *now).length() / h)
                 .fold(0.0, f64::max)
         };
         let mut best = (f64::INFINITY, 0.0);
@@ -660,12 +668,12 @@ impl FormationManager {
             .zip(self.wide.iter().zip(&self.line))
             .filter_map(|(f, (wide, line))| {
                 let f = (*f).filter(|f| f.joined && f.error > LAG_FROM_M)?;
-                let to = reference(leader, *wide, *line, behind, 0.0, self.blend);
-                let steps = ((to - f.position).length() / WAY_STEP).ceil().max(1.0) as usize;
-                let clear = (1..=steps).all(|i| {
-                    let p = f.position.lerp(to, i as f64 / steps as f64);
-                    map.clearance(p, need) >= need
-                });
+                let (w, l) = reference_ends(leader, *wide, *line, behind, 0.0);
+                let to = w.lerp(l, self.blend);
+                // From the first step beyond where it stands: it may stand close to a bin.
+                let clear = way_points(f.position, to)
+                    .skip(1)
+                    .all(|p| map.clearance(p, need) >= need);
                 clear.then_some(f.error)
             })
             .fold(0.0, f64::max);

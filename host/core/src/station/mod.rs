@@ -500,7 +500,7 @@ impl BaseStation {
         }
     }
 
-    /// Each follower's (slot order) fresh position and tracking error.
+    /// Each follower's (slot order) fresh position, tracking error and whether it has joined.
     fn follower_statuses(&self, now_ms: u32) -> Vec<Option<FollowerStatus>> {
         self.cfg
             .followers
