@@ -148,3 +148,82 @@ fn a_u_turn_toward_the_route_is_not_a_blockage() {
     assert_eq!(planner.replans(), 0, "the turn was taken for a blockage");
     assert!(arrived.is_some());
 }
+
+/// Mean |ω| the routed planner commands over 20 m of open field, with the leader's heading
+/// seen through fixes' noise (σ ≈ 0.5°, deterministic), and where it ends up across.
+fn straight_run(params: PlannerParams) -> (f64, f64) {
+    use base_station::planner::route::RouteParams;
+    let goal = DVec2::new(25.0, 0.0);
+    let mut planner = Planner::routed(
+        params,
+        vec![goal],
+        0.0,
+        RouteParams::for_fleet(FOOTPRINT, 3.0, 0.4),
+    );
+    planner.set_formation(6.0, 0.8, 0.5);
+    let mut pose = start();
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let mut noise = || {
+        // xorshift64, then a sum of four uniforms: about normal, σ ≈ 0.5°.
+        let mut sum = 0.0;
+        for _ in 0..4 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            sum += (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        }
+        sum * 0.5f64.to_radians() / (4.0f64 / 12.0).sqrt()
+    };
+    let (mut sum, mut n) = (0.0, 0);
+    let dt = 0.1;
+    for k in 0..600 {
+        let seen = PlanPose {
+            heading: pose.heading + noise(),
+            ..pose
+        };
+        let cmd = planner.step(k as f64 * dt, dt, seen, &Map::new(vec![]), 0.0, 1.0);
+        if (3.0..20.0).contains(&pose.position.x) {
+            sum += cmd.omega.abs();
+            n += 1;
+        }
+        pose.position += DVec2::new(pose.heading.cos(), pose.heading.sin()) * cmd.v * dt;
+        pose.heading += cmd.omega * dt;
+    }
+    (sum / n as f64, pose.position.y)
+}
+
+#[test]
+fn the_leader_does_not_steer_on_the_noise_of_its_fixes() {
+    let (with, across) = straight_run(PlannerParams::DEFAULT);
+    let (without, _) = straight_run(PlannerParams {
+        turn_dead_band: 0.0,
+        ..PlannerParams::DEFAULT
+    });
+    println!("mean |ω| on a straight leg: {with:.4} rad/s (without the dead band {without:.4}); {across:.3} m across at the end");
+    // A 6 m V's rear slot swings 6·ω across: 0.002 rad/s is 1.2 cm/s.
+    assert!(with < 0.002, "{with}");
+    assert!(without > 3.0 * with.max(0.001), "{without} vs {with}");
+    assert!(across.abs() < 0.1, "{across} m off the route");
+}
+
+#[test]
+fn the_dead_band_still_turns_onto_a_heading_off_by_ten_degrees() {
+    let map = Map::new(vec![]);
+    let mut planner = Planner::new(PlannerParams::DEFAULT, vec![DVec2::new(20.0, 0.0)], 0.0);
+    let mut pose = PlanPose {
+        heading: 10f64.to_radians(),
+        ..start()
+    };
+    let dt = 0.1;
+    for k in 0..200 {
+        let cmd = planner.step(k as f64 * dt, dt, pose, &map, 0.0, 1.0);
+        pose.position += DVec2::new(pose.heading.cos(), pose.heading.sin()) * cmd.v * dt;
+        pose.heading += cmd.omega * dt;
+    }
+    // Left with at most the dead band's heading error: 0.04 / 1.2 rad (1.9°).
+    assert!(
+        pose.heading.abs() < 0.04 / 1.2 + 1e-3,
+        "{}",
+        pose.heading.to_degrees()
+    );
+}

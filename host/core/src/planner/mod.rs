@@ -90,6 +90,11 @@ pub struct PlannerParams {
     pub max_accel: f64,
     /// ω = heading_gain · heading error, rad/s per rad.
     pub heading_gain: f64,
+    /// Turn rates the heading error asks for below this are not driven, and this much is
+    /// taken off larger ones, rad/s: a V's rear slot L back turns a leader's correction
+    /// of ω into L·ω across its path, and the few-mrad/s corrections on noisy fixes made
+    /// its follower weave (docs/sim.md, "Straight legs").
+    pub turn_dead_band: f64,
     /// The final goal is reached within this distance, m.
     pub arrival_tolerance: f64,
     /// Intermediate waypoints are passed within this distance, m.
@@ -112,6 +117,7 @@ impl PlannerParams {
         max_turn_rate: 0.6,
         max_accel: 0.3,
         heading_gain: 1.2,
+        turn_dead_band: 0.04,
         arrival_tolerance: 0.3,
         waypoint_tolerance: 1.0,
         stuck_window_s: 8.0,
@@ -336,8 +342,10 @@ impl Planner {
         };
     }
 
-    /// ω toward `target`, within the turn-rate limit and the turn-acceleration limit.
+    /// ω toward `target` less the dead band, within the turn-rate limit and the
+    /// turn-acceleration limit.
     fn turn_toward(&mut self, target: f64, dt: f64) -> f64 {
+        let target = target.signum() * (target.abs() - self.params.turn_dead_band).max(0.0);
         let turn = self.turn_limit();
         let step = self.turn_accel * dt;
         self.omega = (self.omega + (target - self.omega).clamp(-step, step)).clamp(-turn, turn);

@@ -486,6 +486,8 @@ pub struct PlannerToml {
     pub max_turn_rate: f64,
     pub max_accel: f64,
     pub heading_gain: f64,
+    /// Turn rates below this are not driven, rad/s.
+    pub turn_dead_band: f64,
     pub follow_clearance: f64,
     /// Followers whose tracking error exceeds this slow the leader down, m.
     pub wait_for_followers_above: f64,
@@ -504,6 +506,7 @@ impl Default for PlannerToml {
             max_turn_rate: p.max_turn_rate,
             max_accel: p.max_accel,
             heading_gain: p.heading_gain,
+            turn_dead_band: p.turn_dead_band,
             follow_clearance: p.follow_clearance,
             wait_for_followers_above: 0.3,
         }
@@ -727,6 +730,7 @@ impl Scenario {
             max_turn_rate: p.max_turn_rate,
             max_accel: p.max_accel,
             heading_gain: p.heading_gain,
+            turn_dead_band: p.turn_dead_band,
             arrival_tolerance: self.route.arrival_tolerance,
             waypoint_tolerance: self.route.waypoint_tolerance,
             follow_clearance: p.follow_clearance,

@@ -30,6 +30,14 @@ impl Problems {
         ok
     }
 
+    fn non_negative(&mut self, field: &str, v: f64) -> bool {
+        let ok = v.is_finite() && v >= 0.0;
+        if !ok {
+            self.fail(field, &format!("must be a finite number >= 0, got {v}"));
+        }
+        ok
+    }
+
     fn fraction(&mut self, field: &str, v: f64) -> bool {
         let ok = (0.0..1.0).contains(&v);
         if !ok {
@@ -237,6 +245,7 @@ impl Scenario {
         p.positive("planner.max_turn_rate", g.max_turn_rate);
         p.positive("planner.max_accel", g.max_accel);
         p.positive("planner.heading_gain", g.heading_gain);
+        p.non_negative("planner.turn_dead_band", g.turn_dead_band);
         p.positive("planner.follow_clearance", g.follow_clearance);
         p.positive(
             "planner.wait_for_followers_above",
