@@ -20,12 +20,13 @@ use control_core::controller::{MotorOutput, Sensors};
 use embassy_stm32::flash::Flash;
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
 use embassy_stm32::peripherals::{IWDG, TIM2, TIM3, TIM4};
-use embassy_stm32::time::khz;
-use embassy_stm32::timer::low_level::CountingMode;
+use embassy_stm32::timer::low_level::{CountingMode, OutputCompareMode, Timer};
 use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
-use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
+use embassy_stm32::timer::simple_pwm::PwmPin;
+use embassy_stm32::timer::{Ch1, Ch2, Channel};
 use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::Peri;
 use embassy_stm32::{bind_interrupts, peripherals};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
@@ -155,17 +156,11 @@ pub fn init() -> Board {
     .expect("USART1 at 115200 8N1");
     let (radio_tx, radio_rx) = uart.split();
 
-    let mut pwm = SimplePwm::new(
+    let pwm = MotorPwm::new(
         p.TIM2,
-        Some(PwmPin::new(p.PA0, OutputType::PushPull)),
-        Some(PwmPin::new(p.PA1, OutputType::PushPull)),
-        None,
-        None,
-        khz(20),
-        CountingMode::EdgeAlignedUp,
+        PwmPin::new(p.PA0, OutputType::PushPull),
+        PwmPin::new(p.PA1, OutputType::PushPull),
     );
-    pwm.ch1().enable();
-    pwm.ch2().enable();
     let left = Qei::new(p.TIM3, p.PA6, p.PA7, QeiConfig::default());
     let right = Qei::new(p.TIM4, p.PB6, p.PB7, QeiConfig::default());
 
@@ -201,8 +196,58 @@ pub struct Body {
     right: Qei<'static, TIM4>,
     last: [u16; 2],
     ticks: [i32; 2],
-    pwm: SimplePwm<'static, TIM2>,
+    pwm: MotorPwm,
     dir: [Output<'static>; 2],
+}
+
+/// The motors' PWM frequency, Hz.
+const PWM_HZ: u32 = 20_000;
+
+/// TIM2's channels 1 and 2 as the motors' PWM, edge-aligned at [`PWM_HZ`]. Set up from the
+/// timer's clock with one 32-bit division: embassy-stm32's `SimplePwm` computes its
+/// prescaler with a 64-bit one, whose routine alone is 864 B of flash (docs/firmware.md).
+pub struct MotorPwm {
+    timer: Timer<'static, TIM2>,
+    /// Timer clocks per PWM period.
+    period: u32,
+    // Kept: dropping a pin takes it off the timer.
+    _pins: (PwmPin<'static, TIM2, Ch1>, PwmPin<'static, TIM2, Ch2>),
+}
+
+impl MotorPwm {
+    fn new(
+        tim: Peri<'static, TIM2>,
+        left: PwmPin<'static, TIM2, Ch1>,
+        right: PwmPin<'static, TIM2, Ch2>,
+    ) -> Self {
+        let timer = Timer::new(tim);
+        // 800 clocks at the 16 MHz of the default clock tree, 5,000 at 100 MHz: no
+        // prescaler needed.
+        let period = embassy_stm32::rcc::frequency::<TIM2>().0 / PWM_HZ;
+        timer.set_counting_mode(CountingMode::EdgeAlignedUp);
+        timer.regs_core().psc().write_value(0);
+        timer.set_max_compare_value(period - 1);
+        for channel in [Channel::Ch1, Channel::Ch2] {
+            timer.set_output_compare_mode(channel, OutputCompareMode::PwmMode1);
+            timer.set_output_compare_preload(channel, true);
+            timer.set_compare_value(channel, 0);
+            timer.enable_channel(channel, true);
+        }
+        timer.set_autoreload_preload(true);
+        timer.generate_update_event();
+        timer.start();
+        Self {
+            timer,
+            period,
+            _pins: (left, right),
+        }
+    }
+
+    /// Duty of `channel` in thousandths (at most 1000).
+    fn set(&mut self, channel: Channel, permille: u32) {
+        let compare = permille.min(1000) * self.period / 1000;
+        self.timer.set_compare_value(channel, compare);
+    }
 }
 
 impl Body {
@@ -225,10 +270,8 @@ impl Body {
             let level = if *duty < 0.0 { Level::High } else { Level::Low };
             self.dir[i].set_level(level);
             let permille = (duty.abs().min(1.0) * 1000.0) as u32;
-            match i {
-                0 => self.pwm.ch1().set_duty_cycle_fraction(permille, 1000),
-                _ => self.pwm.ch2().set_duty_cycle_fraction(permille, 1000),
-            }
+            let channel = [Channel::Ch1, Channel::Ch2][i];
+            self.pwm.set(channel, permille);
         }
     }
 }
