@@ -79,8 +79,9 @@ pub struct RobotConfig {
     pub fix_gate: f32,
     /// The proximity layer stops the robot this far from what its sensors see, m.
     pub proximity_stop: f32,
-    /// Speed allowed per metre of free distance beyond `proximity_stop`, 1/s.
-    pub proximity_gain: f32,
+    /// The deceleration the proximity layer plans to stop with, m/s²: toward an obstacle
+    /// the speed is at most √(2·proximity_decel·(free − proximity_stop)).
+    pub proximity_decel: f32,
 }
 
 impl RobotConfig {
@@ -123,7 +124,7 @@ impl RobotConfig {
         fix_gain: 0.05,
         fix_gate: 0.5,
         proximity_stop: 0.15,
-        proximity_gain: 1.0,
+        proximity_decel: 0.5,
     };
 
     pub fn period_s(&self) -> f32 {

@@ -425,12 +425,14 @@ impl Controller {
 
     /// The local safety layer: whatever the law or the base station asks, the robot does
     /// not drive into what its proximity sensors see. Speed toward an obstacle is capped
-    /// at `proximity_gain · (free − proximity_stop)`, so it closes in exponentially and
-    /// stops short.
+    /// at the speed it can stop from at `proximity_decel` (half its braking) before
+    /// `proximity_stop`. A linear cap (1/s per metre) crawled at 0.15 m/s with 0.3 m free:
+    /// a follower passing a bin beside its way fell behind its slot (docs/sim.md).
     fn keep_distance(&self, t: Twist, proximity: &[Option<f32>; 2]) -> Twist {
         let cap = |free: Option<f32>| {
             free.map_or(f32::INFINITY, |d| {
-                ((d - self.cfg.proximity_stop) * self.cfg.proximity_gain).max(0.0)
+                let room = (d - self.cfg.proximity_stop).max(0.0);
+                math::sqrt(2.0 * self.cfg.proximity_decel * room)
             })
         };
         let v = math::clamp(t.v, -cap(proximity[1]), cap(proximity[0]));

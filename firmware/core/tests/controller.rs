@@ -274,3 +274,44 @@ proptest! {
         }
     }
 }
+
+/// A leader told to drive on at 0.45 m/s toward a wall its ring sees: the speed it keeps
+/// at each free distance, and the least free distance it came to.
+fn drive_at_a_wall(wall_x: f32) -> (Vec<(f32, f32)>, f32) {
+    let mut c = Controller::new(CFG, Role::Leader);
+    let mut body = Body::new(Pose::new(0.0, 0.0, 0.0));
+    let footprint = 0.3;
+    let (mut t, mut least, mut speeds) = (0u32, f32::INFINITY, Vec::new());
+    for i in 0..150 {
+        c.set_command(Twist::new(0.45, 0.0), t).unwrap();
+        let free = wall_x - body.pose.x - footprint;
+        least = least.min(free);
+        let mut sensors = body.sensors(&CFG, (i % 10 == 0).then_some(t));
+        sensors.proximity = [Some(free), None];
+        let out = c.step(t, &sensors);
+        speeds.push((free, c.commanded().v));
+        body.advance(&out, &CFG, 0.1, 20);
+        t += 100;
+    }
+    (speeds, least)
+}
+
+#[test]
+fn the_ring_stops_a_robot_short_of_a_wall_without_crawling_up_to_it() {
+    let (speeds, least) = drive_at_a_wall(3.0);
+    // Stops short of proximity_stop (0.15 m), with the wheels' lag, and does not touch.
+    assert!(least > 0.12, "came within {least} m");
+    let at = |free: f32| {
+        speeds
+            .iter()
+            .filter(|(d, _)| *d <= free)
+            .map(|(_, v)| *v)
+            .next()
+            .unwrap()
+    };
+    // With 0.3 m free it may still drive at √(2·0.5·0.15) = 0.39 m/s (a linear cap of
+    // 1/s allowed 0.15 m/s), and it stands still at the stop distance.
+    assert!(at(0.3) > 0.3, "{} m/s at 0.3 m free", at(0.3));
+    let last = speeds.last().unwrap();
+    assert!(last.0 < 0.2 && last.1.abs() < 0.02, "{last:?}");
+}
