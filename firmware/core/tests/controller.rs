@@ -315,3 +315,112 @@ fn the_ring_stops_a_robot_short_of_a_wall_without_crawling_up_to_it() {
     let last = speeds.last().unwrap();
     assert!(last.0 < 0.2 && last.1.abs() < 0.02, "{last:?}");
 }
+
+/// A follower in its slot, then held by its ring (0.25 m free ahead) whose left and right
+/// beams see `sides`: the turn rate it commands.
+fn held_turn_rate(sides: [Option<f32>; 2]) -> f32 {
+    let mut s = Scene::new();
+    for _ in 0..100 {
+        s.step(true);
+    }
+    s.c.set_leader_state(s.leader, s.t, 0.0, s.t).unwrap();
+    let mut sensors = s.body.sensors(&CFG, Some(s.t));
+    sensors.proximity = [Some(0.25), None];
+    sensors.proximity_sides = sides;
+    s.c.step(s.t, &sensors);
+    s.c.commanded().omega
+}
+
+#[test]
+fn a_follower_held_by_its_ring_turns_toward_the_clearly_freer_side() {
+    let alike = held_turn_rate([Some(0.25), Some(0.25)]);
+    let left_near = held_turn_rate([Some(0.25), None]);
+    let right_near = held_turn_rate([Some(0.6), Some(0.25)]);
+    println!(
+        "held: {alike:.3} rad/s; left side near {left_near:.3}, right side near {right_near:.3}"
+    );
+    // 0.25 m free allows √(2·0.5·0.1) = 0.32 m/s, under the 0.4 m/s below which it is
+    // held: a fifth held, so a fifth of `sidestep_rate` (1 rad/s) away from the nearer side.
+    assert!(left_near < alike - 0.1, "{left_near} vs {alike}");
+    assert!(right_near > alike + 0.1, "{right_near} vs {alike}");
+    // Sides alike within 0.2 m, or seeing nothing: it waits, turning only as its law asks.
+    assert_eq!(held_turn_rate([Some(0.3), Some(0.45)]), alike);
+    assert_eq!(held_turn_rate([None, None]), alike);
+}
+
+/// The ring a test body carries: five beams over ±40° ahead, each echo counted as far as
+/// the footprint (0.3 m) widened by 0.2 m a side could drive before touching it (as
+/// `hil-sim`'s ring reports it); ahead, and the left and right beams.
+fn ring(pose: &Pose, bin: (f32, f32), radius: f32) -> ([Option<f32>; 2], [Option<f32>; 2]) {
+    let corridor = 0.3 + 0.2;
+    let free: Vec<f32> = [-40f32, -20.0, 0.0, 20.0, 40.0]
+        .iter()
+        .map(|deg| {
+            let beam = deg.to_radians();
+            let (dx, dy) = ((pose.heading + beam).cos(), (pose.heading + beam).sin());
+            let (ox, oy) = (bin.0 - pose.x, bin.1 - pose.y);
+            let along = ox * dx + oy * dy;
+            let across2 = ox * ox + oy * oy - along * along;
+            if along <= 0.0 || across2 > radius * radius {
+                return f32::INFINITY;
+            }
+            let echo = along - (radius * radius - across2).sqrt();
+            let (ahead, aside) = (echo * beam.cos(), (echo * beam.sin()).abs());
+            if aside >= corridor {
+                return f32::INFINITY;
+            }
+            ahead - (corridor * corridor - aside * aside).sqrt() + 0.2
+        })
+        .collect();
+    let report = |f: &[f32]| {
+        let m = f.iter().copied().fold(f32::INFINITY, f32::min);
+        (m < 2.0).then_some(m.max(0.0))
+    };
+    (
+        [report(&free), None],
+        [report(&free[3..]), report(&free[..2])],
+    )
+}
+
+/// A follower in its slot passes a bin whose near side lies 0.25 m inside its track's
+/// footprint, on its left: its worst tracking error, its least clearance and its error at
+/// the end (40 s).
+fn pass_a_bin(cfg: RobotConfig) -> (f32, f32, f32) {
+    let mut s = Scene::new();
+    s.c = Controller::new(cfg, Role::Follower);
+    s.c.set_slots(wide_slots()).unwrap();
+    // The follower's track: y = 3·sin 150° = 1.5; the bin's edge 0.05 m left of it.
+    let (bin, radius) = ((8.0, 1.5 + 0.05 + 0.4), 0.4);
+    let (mut worst, mut least) = (0.0f32, f32::INFINITY);
+    for k in 0..400 {
+        s.c.set_leader_state(s.leader, s.t, 0.0, s.t).unwrap();
+        let mut sensors = s.body.sensors(&cfg, Some(s.t));
+        (sensors.proximity, sensors.proximity_sides) = ring(&s.body.pose, bin, radius);
+        let out = s.c.step(s.t, &sensors);
+        s.body.advance(&out, &cfg, 0.1, 20);
+        s.leader = s.leader.predict(0.1);
+        s.t += 100;
+        let p = s.body.pose;
+        least = least.min(((p.x - bin.0).powi(2) + (p.y - bin.1).powi(2)).sqrt() - radius - 0.3);
+        if k > 50 {
+            worst = worst.max(s.c.tracking_error().unwrap_or(0.0));
+        }
+    }
+    (worst, least, s.c.tracking_error().unwrap_or(f32::INFINITY))
+}
+
+#[test]
+fn a_follower_goes_round_a_bin_on_its_track_and_comes_back() {
+    let (with, clear, end) = pass_a_bin(CFG);
+    let (waiting, _, _) = pass_a_bin(RobotConfig {
+        sidestep_rate: 0.0,
+        ..CFG
+    });
+    println!(
+        "worst error {with:.2} m (waiting behind it: {waiting:.2} m), least clearance {clear:.2} m, at the end {end:.3} m"
+    );
+    assert!(clear > 0.0, "touched the bin: {clear}");
+    assert!(with < 0.2 * waiting, "{with} vs {waiting}");
+    // And it came back to its slot.
+    assert!(end < 0.05, "{end}");
+}

@@ -40,6 +40,7 @@ impl Body {
                 time_ms: t,
             }),
             proximity: [None, None],
+            proximity_sides: [None, None],
         }
     }
 

@@ -262,6 +262,7 @@ impl Body {
             ticks: self.ticks,
             pose_fix: None,
             proximity: [None, None],
+            proximity_sides: [None, None],
         }
     }
 
