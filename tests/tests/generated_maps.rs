@@ -72,6 +72,16 @@ fn narrow_sections(world: &World) -> usize {
 
 /// Runs a map with a way; returns a one-line summary or what went wrong.
 fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
+    check_way_then(g, seed, |_| Ok(String::new()))
+}
+
+/// [`check_way`], and `more` judges the run's report too (what it returns goes on the
+/// summary line).
+fn check_way_then(
+    g: &Generated,
+    seed: u64,
+    more: impl Fn(&Report) -> Result<String, String>,
+) -> Result<String, String> {
     let path = save(g);
     let s =
         Scenario::parse(&g.toml, &g.name).map_err(|e| format!("{path}: does not parse: {e}"))?;
@@ -109,7 +119,7 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
         .iter()
         .filter_map(common::own_straight_omega)
         .fold(0.0, f64::max);
-    let line = format!(
+    let mut line = format!(
         "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} ({legs:.0} s) own {own_jitter:.3} changes {changes} sections {sections}",
         g.name,
         r.time_to_goal_s.map_or("never".into(), |t| format!("{t:.1}")),
@@ -139,6 +149,10 @@ fn check_way(g: &Generated, seed: u64) -> Result<String, String> {
         bad.push(format!(
             "{changes} shape changes for {sections} narrow sections"
         ));
+    }
+    match more(&r) {
+        Ok(extra) => line.push_str(&extra),
+        Err(e) => bad.push(e),
     }
     if bad.is_empty() {
         Ok(line)
@@ -242,19 +256,18 @@ fn seven_follower_v_in_streets() {
 
 /// [`check_way`], and the run must have planned again at least once.
 fn check_replanned(g: &Generated, seed: u64) -> Result<String, String> {
-    let line = check_way(g, seed)?;
-    let s = Scenario::parse(&g.toml, &g.name).expect("parses");
-    let (r, _) = common::run(s, seed);
-    let replans = r
-        .station_events
-        .iter()
-        .filter(|e| e.event == "replanned")
-        .count();
-    if replans == 0 {
-        Err(format!("{line}\n    never planned again"))
-    } else {
-        Ok(format!("{line} replans {replans}"))
-    }
+    check_way_then(g, seed, |r| {
+        let replans = r
+            .station_events
+            .iter()
+            .filter(|e| e.event == "replanned")
+            .count();
+        if replans == 0 {
+            Err("never planned again".to_string())
+        } else {
+            Ok(format!(" replans {replans}"))
+        }
+    })
 }
 
 #[test]
