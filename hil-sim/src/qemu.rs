@@ -363,12 +363,7 @@ impl Brain for QemuBrain {
                 pose_fix: s
                     .pose_fix
                     .map(|f| (f.pose.x, f.pose.y, f.pose.heading, f.sigma, f.time_ms)),
-                proximity: [
-                    s.proximity[0],
-                    s.proximity[1],
-                    s.proximity_sides[0],
-                    s.proximity_sides[1],
-                ],
+                proximity: s.proximity,
             }),
         };
         let mut out = Vec::with_capacity(64 + radio.len() * 2);

@@ -275,17 +275,6 @@ pub struct World {
 const PERIOD_US: u64 = 100_000;
 /// How far the simulated ultrasonic ring sees beyond the footprint, m.
 const PROXIMITY_RANGE: f64 = 2.0;
-/// The ring's beams off the heading, right to left, degrees.
-const RING_BEAMS_DEG: [f64; 5] = [-40.0, -20.0, 0.0, 20.0, 40.0];
-
-/// What the ultrasonic ring reports (see `World::proximity`).
-struct Ring {
-    /// Free distance ahead and behind, m.
-    proximity: [Option<f32>; 2],
-    /// Ahead, from the left beams and from the right beams, m.
-    sides: [Option<f32>; 2],
-}
-
 /// Grid cell for robot neighbour queries, m (≥ range + two footprints).
 const CELL: f64 = 3.0;
 
@@ -661,7 +650,7 @@ impl World {
         let mut stepping = Vec::new();
         for i in (0..self.robots.len()).filter(|i| due[*i] || hearing[*i]) {
             let sensors = due[i].then(|| {
-                let ring = self.proximity(i, grid.as_ref().expect("built when due"));
+                let proximity = self.proximity(i, grid.as_ref().expect("built when due"));
                 let r = &mut self.robots[i];
                 let mut newest = None;
                 while r.fixes.front().is_some_and(|(at, _)| *at <= t) {
@@ -674,8 +663,7 @@ impl World {
                         time_ms: f.time_ms.wrapping_sub(phase_ms),
                         ..f
                     }),
-                    proximity: ring.proximity,
-                    proximity_sides: ring.sides,
+                    proximity,
                 }
             });
             let r = &mut self.robots[i];
@@ -772,8 +760,8 @@ impl World {
     /// The ultrasonic ring of robot `i` as its board reports it: how far the footprint can
     /// drive ahead (behind) before it touches what a transducer sees (five beams over
     /// ±40°, range `PROXIMITY_RANGE` beyond the footprint; [`free_ahead`]), obstacles and
-    /// other robots; and ahead, the same from the two left beams and the two right ones.
-    fn proximity(&self, i: usize, grid: &HashMap<(i64, i64), Vec<usize>>) -> Ring {
+    /// other robots.
+    fn proximity(&self, i: usize, grid: &HashMap<(i64, i64), Vec<usize>>) -> [Option<f32>; 2] {
         let body = &self.robots[i].body;
         let fp = body.params.footprint;
         let p = DVec2::new(body.x, body.y);
@@ -786,34 +774,28 @@ impl World {
             .filter(|j| **j != i)
             .map(|j| DVec2::new(self.robots[*j].body.x, self.robots[*j].body.y))
             .collect();
-        // Free distance per beam, right to left.
-        let beams = |base: f64| {
-            RING_BEAMS_DEG.map(|deg| {
-                let a = base + deg.to_radians();
-                let dir = DVec2::new(a.cos(), a.sin());
-                let wall = self.map.ray_cast(p, dir, reach);
-                let echo = neighbours
-                    .iter()
-                    .filter_map(|q| ray_circle(p, dir, *q, fp))
-                    .fold(wall, f64::min);
-                (echo < reach)
-                    .then(|| free_ahead(echo, deg.to_radians(), fp))
-                    .flatten()
-                    .unwrap_or(f64::INFINITY)
-            })
-        };
-        let report = |frees: &[f64]| {
-            let free = frees.iter().copied().fold(f64::INFINITY, f64::min);
+        let sense = |base: f64| {
+            let free = [-40f64, -20.0, 0.0, 20.0, 40.0]
+                .iter()
+                .filter_map(|deg| {
+                    let a = base + deg.to_radians();
+                    let dir = DVec2::new(a.cos(), a.sin());
+                    let wall = self.map.ray_cast(p, dir, reach);
+                    let echo = neighbours
+                        .iter()
+                        .filter_map(|q| ray_circle(p, dir, *q, fp))
+                        .fold(wall, f64::min);
+                    (echo < reach)
+                        .then(|| free_ahead(echo, deg.to_radians(), fp))
+                        .flatten()
+                })
+                .fold(f64::INFINITY, f64::min);
             (free < PROXIMITY_RANGE).then_some(free.max(0.0) as f32)
         };
-        let ahead = beams(body.heading);
-        Ring {
-            proximity: [
-                report(&ahead),
-                report(&beams(body.heading + std::f64::consts::PI)),
-            ],
-            sides: [report(&ahead[3..]), report(&ahead[..2])],
-        }
+        [
+            sense(body.heading),
+            sense(body.heading + std::f64::consts::PI),
+        ]
     }
 
     /// The current base station's clock now, ms.

@@ -73,8 +73,7 @@ pub struct BodySensors {
     pub ticks: [i32; 2],
     /// x, y (m), heading (rad), σ (m), time (ms, firmware clock).
     pub pose_fix: Option<(f32, f32, f32, f32, u32)>,
-    /// Free distance ahead, behind, and ahead as the left beams and the right beams see it.
-    pub proximity: [Option<f32>; 4],
+    pub proximity: [Option<f32>; 2],
 }
 
 /// MCU → simulator.

@@ -29,7 +29,6 @@ fn bench(c: &mut Criterion) {
             ticks: [0, 0],
             pose_fix: Some(fix(0)),
             proximity: [None, None],
-            proximity_sides: [None, None],
         },
     );
     let mut t = 0u32;
@@ -49,7 +48,6 @@ fn bench(c: &mut Criterion) {
                 ticks,
                 pose_fix: Some(fix(t - 30)),
                 proximity: [None, None],
-                proximity_sides: [None, None],
             };
             black_box(ctl.step(t, &sensors))
         })

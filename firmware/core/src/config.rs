@@ -82,9 +82,6 @@ pub struct RobotConfig {
     /// The deceleration the proximity layer plans to stop with, m/s²: toward an obstacle
     /// the speed is at most √(2·proximity_decel·(free − proximity_stop)).
     pub proximity_decel: f32,
-    /// How fast a follower held back by its ring turns toward its freer side, at a
-    /// standstill, rad/s (0: it waits).
-    pub sidestep_rate: f32,
 }
 
 impl RobotConfig {
@@ -128,7 +125,6 @@ impl RobotConfig {
         fix_gate: 0.5,
         proximity_stop: 0.15,
         proximity_decel: 0.5,
-        sidestep_rate: 1.0,
     };
 
     pub fn period_s(&self) -> f32 {

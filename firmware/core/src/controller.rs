@@ -43,9 +43,6 @@ pub struct Sensors {
     /// Free distance to the nearest thing in front of and behind the footprint (the
     /// ultrasonic ring), m; `None` when nothing is in range.
     pub proximity: [Option<f32>; 2],
-    /// The free distance ahead as the ring's left beams and its right beams see it (the
-    /// centre beam in neither), m: which way is freer when something holds the robot.
-    pub proximity_sides: [Option<f32>; 2],
 }
 
 /// Motor duties, left then right, each in [-1, 1]. Always finite.
@@ -87,9 +84,6 @@ pub struct Controller {
     faults: u16,
     /// How long each wheel has been asked to turn without turning, ms.
     stalled_ms: [u32; 2],
-    /// After turning away from an echo: the way it turned (+1 left, −1 right, 0 none)
-    /// and how much farther it drives before its law may turn it back that way, m.
-    passing: (f32, f32),
 }
 
 impl Controller {
@@ -114,7 +108,6 @@ impl Controller {
             input_faults: 0,
             faults: 0,
             stalled_ms: [0; 2],
-            passing: (0.0, 0.0),
         }
     }
 
@@ -257,7 +250,7 @@ impl Controller {
         }
         faults |= self.watch_wheels(&measured, dt);
         let (mode, target) = self.decide(now_ms, dt, &mut faults);
-        let target = self.keep_distance(target, sensors, mode, dt);
+        let target = self.keep_distance(target, &sensors.proximity);
         if self.emergency {
             faults |= faults::EMERGENCY_STOP;
         }
@@ -434,64 +427,20 @@ impl Controller {
     /// not drive into what its proximity sensors see. Speed toward an obstacle is capped
     /// at the speed it can stop from at `proximity_decel` (half its braking) before
     /// `proximity_stop`. A linear cap (1/s per metre) crawled at 0.15 m/s with 0.3 m free:
-    /// a follower passing a bin beside its way fell behind its slot (docs/sim.md). A
-    /// follower it holds goes round what holds it ([`Self::sidestep`]).
-    fn keep_distance(&mut self, t: Twist, sensors: &Sensors, mode: RobotMode, dt: f32) -> Twist {
+    /// a follower passing a bin beside its way fell behind its slot (docs/sim.md).
+    fn keep_distance(&self, t: Twist, proximity: &[Option<f32>; 2]) -> Twist {
         let cap = |free: Option<f32>| {
             free.map_or(f32::INFINITY, |d| {
                 let room = (d - self.cfg.proximity_stop).max(0.0);
                 math::sqrt(2.0 * self.cfg.proximity_decel * room)
             })
         };
-        let proximity = &sensors.proximity;
         let v = math::clamp(t.v, -cap(proximity[1]), cap(proximity[0]));
+        if v == t.v || t.v == 0.0 {
+            return t;
+        }
         // ω is kept: turning away from the obstacle stays possible.
-        let mut omega = t.omega;
-        let follower = self.role == Role::Follower && is_driving(mode);
-        if follower && v < t.v && t.v > 0.0 {
-            // Away from the nearer side at least this fast; the law may turn it further
-            // (within the turn-rate limit still: |away| ≤ sidestep_rate).
-            let away = self.sidestep(v, &sensors.proximity_sides);
-            if away != 0.0 {
-                self.passing = (away, PASS_M);
-            }
-            if (omega - away) * away < 0.0 {
-                omega = away;
-            }
-        } else if follower && self.passing.1 > 0.0 {
-            // The ring's beams do not see beside the robot: driving on, not back toward
-            // what it turned from until it has driven past it (turning slowly, nearly
-            // on the spot, its round footprint sweeps little new).
-            if v > PASS_TURN_BELOW && omega * self.passing.0 < 0.0 {
-                omega = 0.0;
-            }
-            self.passing.1 -= v.max(0.0) * dt;
-        } else {
-            self.passing.1 = 0.0;
-        }
-        Twist { v, omega }
-    }
-
-    /// A follower held back by what its ring sees ahead turns toward the side the ring
-    /// finds clearly freer, the harder the more it is held, and its law turns it back
-    /// once the way is free: it goes round and comes back. Where both sides are alike (an
-    /// alley's mouth, a gap between two bins) it waits.
-    fn sidestep(&self, allowed: f32, sides: &[Option<f32>; 2]) -> f32 {
-        let free = |side: Option<f32>| side.unwrap_or(f32::INFINITY);
-        let (left, right) = match sides {
-            [None, None] => return 0.0,
-            [left, right] => (free(*left), free(*right)),
-        };
-        if math::abs(left - right) < SIDESTEP_MARGIN {
-            return 0.0;
-        }
-        // How hard the echo holds it: from 0 at `HELD_BELOW` to 1 at a standstill.
-        let held = 1.0 - allowed / HELD_BELOW;
-        if held <= 0.0 {
-            return 0.0;
-        }
-        let toward = if left > right { 1.0 } else { -1.0 };
-        toward * held * self.cfg.sidestep_rate
+        Twist { v, omega: t.omega }
     }
 
     /// The next step of a stop: slow down at the braking rate along the same arc.
@@ -508,18 +457,6 @@ impl Controller {
         }
     }
 }
-
-/// How much freer one side of the ring must be than the other for a held follower to
-/// turn toward it, m.
-const SIDESTEP_MARGIN: f32 = 0.2;
-/// How far a follower that turned away from an echo drives on before its law may turn it
-/// back toward it, m: past a bin the ring's ±40° beams lost sight of.
-const PASS_M: f32 = 0.8;
-/// A follower its ring lets drive slower than this is held, m/s (one kept a little slower
-/// by a neighbour beside it is not).
-const HELD_BELOW: f32 = 0.4;
-/// Below this speed a passing follower may turn back all the same, m/s.
-const PASS_TURN_BELOW: f32 = 0.1;
 
 /// A wheel that does not follow its set-point this long is stalled, ms.
 const STALL_MS: u32 = 1000;

@@ -87,7 +87,6 @@ fn follower_links_follows_and_reports() {
                 time_ms: now,
             }),
             proximity: [None, None],
-            proximity_sides: [None, None],
         };
         node.tick(now, &sensors, &mut |b| to_base.extend_from_slice(b));
     }

@@ -40,7 +40,6 @@ impl Body {
                 time_ms: t,
             }),
             proximity: [None, None],
-            proximity_sides: [None, None],
         }
     }
 

@@ -264,7 +264,6 @@ impl Body {
             ticks: self.ticks,
             pose_fix: None,
             proximity: [None, None],
-            proximity_sides: [None, None],
         }
     }
 

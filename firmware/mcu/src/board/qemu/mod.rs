@@ -80,8 +80,7 @@ impl Body {
                     sigma,
                     time_ms: t,
                 }),
-                proximity: [s.proximity[0], s.proximity[1]],
-                proximity_sides: [s.proximity[2], s.proximity[3]],
+                proximity: s.proximity,
             },
             None => Sensors::default(),
         }
