@@ -138,7 +138,7 @@ pub async fn body_task(spawner: Spawner) {
                 loop {}
             }
             Some(_) => {
-                // Not formatted: that pulled in the body messages' defmt code, 564 B of flash.
+                // Not formatted: that pulled in the body messages' defmt code, 556 B of flash.
                 defmt::warn!("unexpected body message outside a step: dropped");
                 continue;
             }
