@@ -53,6 +53,17 @@ pub enum StationEvent {
         command: OperatorCommand,
         at_ms: u32,
     },
+    /// A joined follower has been more than a metre from its reference for 5 s: the
+    /// formation goes on without it (its ring holds it behind an obstacle, say).
+    FollowerBehind {
+        robot: u16,
+        at_ms: u32,
+    },
+    /// A follower left behind is within 0.3 m of its reference again.
+    FollowerCaughtUp {
+        robot: u16,
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -78,6 +89,10 @@ impl StationEvent {
             E::Replanned { at_ms } => (*at_ms, "replanned".into(), None),
             E::NoRoute { at_ms, .. } => (*at_ms, "no_route".into(), None),
             E::Arrived { at_ms } => (*at_ms, "goal_reached".into(), None),
+            E::FollowerBehind { robot, at_ms } => (*at_ms, "follower_behind".into(), Some(*robot)),
+            E::FollowerCaughtUp { robot, at_ms } => {
+                (*at_ms, "follower_caught_up".into(), Some(*robot))
+            }
             E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)

@@ -68,11 +68,61 @@ pub struct RobotStatus {
     pub pose_at_ms: u32,
     /// Whether it has been within `JOINED_BELOW_MM` of its reference since it linked.
     pub joined: bool,
+    /// Since when a joined follower has been farther than `BEHIND_ABOVE_MM` from its
+    /// reference (station clock, ms), and whether the operator was told.
+    pub behind_since_ms: Option<u32>,
+    pub behind: bool,
 }
 
 /// A follower this close to its reference has joined the formation, mm (as the report
 /// counts joining).
 const JOINED_BELOW_MM: u16 = 100;
+/// A joined follower this far from its reference for `BEHIND_FOR_MS` is left behind (held
+/// behind an obstacle its ring will not let it pass, say): the operator is told, mm.
+const BEHIND_ABOVE_MM: u16 = 1000;
+const BEHIND_FOR_MS: u32 = 5000;
+/// It has caught up again under this, mm (where it counts as joining again, as well).
+const CAUGHT_UP_BELOW_MM: u16 = 300;
+
+impl RobotStatus {
+    /// Whether a joined follower has now been left behind, or has caught up again.
+    fn watch_behind(&mut self, robot: u16, t: &Telemetry, now_ms: u32) -> Option<StationEvent> {
+        let following = matches!(
+            t.mode,
+            RobotMode::Joining | RobotMode::InFormation | RobotMode::Transforming
+        );
+        if !(self.joined && following) {
+            return None;
+        }
+        if t.tracking_error_mm < CAUGHT_UP_BELOW_MM {
+            self.behind_since_ms = None;
+            if std::mem::take(&mut self.behind) {
+                tracing::info!(robot, "follower caught up");
+                return Some(StationEvent::FollowerCaughtUp {
+                    robot,
+                    at_ms: now_ms,
+                });
+            }
+        } else if t.tracking_error_mm > BEHIND_ABOVE_MM {
+            let since = *self.behind_since_ms.get_or_insert(now_ms);
+            if !self.behind && now_ms.wrapping_sub(since) >= BEHIND_FOR_MS {
+                self.behind = true;
+                tracing::warn!(
+                    robot,
+                    error_mm = t.tracking_error_mm,
+                    "follower left behind"
+                );
+                return Some(StationEvent::FollowerBehind {
+                    robot,
+                    at_ms: now_ms,
+                });
+            }
+        } else if !self.behind {
+            self.behind_since_ms = None;
+        }
+        None
+    }
+}
 
 /// What the operator tells the fleet (the console's buttons).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -416,6 +466,9 @@ impl BaseStation {
                             status.joined |=
                                 matches!(t.mode, RobotMode::InFormation | RobotMode::Transforming)
                                     && t.tracking_error_mm < JOINED_BELOW_MM;
+                            if let Some(event) = status.watch_behind(id, &t, now_ms) {
+                                self.events.push(event);
+                            }
                             status.received_ms = now_ms;
                             // Robot clock → ours; never later than now.
                             let at = header.time_ms.wrapping_sub(offset as u32);
