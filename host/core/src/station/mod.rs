@@ -84,14 +84,18 @@ const BEHIND_FOR_MS: u32 = 5000;
 /// It has caught up again under this, mm (where it counts as joining again, as well).
 const CAUGHT_UP_BELOW_MM: u16 = 300;
 
+/// A follower in this mode is following its slot (not idle, stopped or failsafe).
+fn is_following(mode: RobotMode) -> bool {
+    matches!(
+        mode,
+        RobotMode::Joining | RobotMode::InFormation | RobotMode::Transforming
+    )
+}
+
 impl RobotStatus {
     /// Whether a joined follower has now been left behind, or has caught up again.
     fn watch_behind(&mut self, robot: u16, t: &Telemetry, now_ms: u32) -> Option<StationEvent> {
-        let following = matches!(
-            t.mode,
-            RobotMode::Joining | RobotMode::InFormation | RobotMode::Transforming
-        );
-        if !(self.joined && following) {
+        if !(self.joined && is_following(t.mode)) {
             return None;
         }
         if t.tracking_error_mm < CAUGHT_UP_BELOW_MM {
@@ -682,12 +686,7 @@ impl BaseStation {
             let following = self.cfg.followers.iter().all(|id| {
                 self.fresh(*id, now_ms)
                     .and_then(|s| s.telemetry)
-                    .is_some_and(|t| {
-                        matches!(
-                            t.mode,
-                            RobotMode::Joining | RobotMode::InFormation | RobotMode::Transforming
-                        )
-                    })
+                    .is_some_and(|t| is_following(t.mode))
             });
             if !following {
                 self.last_command = (0.0, 0.0);
