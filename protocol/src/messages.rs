@@ -165,6 +165,16 @@ pub struct FormationCommand {
     pub line: Slot,
 }
 
+/// Base station → one follower: make for this point (site frame, mm) instead of the slot,
+/// to go round what holds it there. Renewed every period while it lasts; a follower that
+/// hears none for a while goes back to its slot.
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Detour {
+    pub x_mm: i32,
+    pub y_mm: i32,
+}
+
 /// Keeps a link alive when there is nothing else to say.
 #[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -289,6 +299,7 @@ messages! {
     8 => Resume, "sweeper/v1/resume";
     9 => Hello, "sweeper/v1/hello";
     10 => Welcome, "sweeper/v1/welcome";
+    11 => Detour, "sweeper/v1/detour";
 }
 
 impl Message {

@@ -102,6 +102,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 broadcast_seq,
             })
         }),
+        (any::<i32>(), any::<i32>())
+            .prop_map(|(x_mm, y_mm)| Message::Detour(Detour { x_mm, y_mm })),
     ]
 }
 
@@ -299,6 +301,10 @@ fn golden_vectors() {
             nonce: 0x0000_0007_0000_0001,
             session: 0xdead_beef,
             broadcast_seq: 1234,
+        }),
+        Message::Detour(Detour {
+            x_mm: 12_345,
+            y_mm: -6_789,
         }),
     ];
     let mut text = String::new();

@@ -189,6 +189,21 @@ fn identical_to_native_with_six_robots() {
     assert_identical(s, 2);
 }
 
+/// The map on which the station sends a follower round a bin that holds it (a `Detour`):
+/// the firmware makes for the point and back to its slot as the native core does.
+#[test]
+fn identical_to_native_going_round_a_bin() {
+    let g = generate::bin_field(110, 45, 5);
+    let s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
+    let r = assert_identical(s, 10);
+    let detours = r
+        .station_events
+        .iter()
+        .filter(|e| e.event == "follower_detour")
+        .count();
+    assert!(detours > 0, "{}: no detour", g.name);
+}
+
 /// One generated map of each other kind the suite runs: a street with pinches and bends
 /// (shape changes), a 1.3 m alley (the ultrasonic ring at work), scattered starts
 /// (joining from 8–15 m), an unmapped barrier (the leader's scanner, replanning, a U-turn).

@@ -84,6 +84,8 @@ pub struct Controller {
     faults: u16,
     /// How long each wheel has been asked to turn without turning, ms.
     stalled_ms: [u32; 2],
+    /// A point to make for instead of the slot, and when the base station sent it.
+    detour: Option<((f32, f32), u32)>,
 }
 
 impl Controller {
@@ -108,6 +110,7 @@ impl Controller {
             input_faults: 0,
             faults: 0,
             stalled_ms: [0; 2],
+            detour: None,
         }
     }
 
@@ -194,6 +197,25 @@ impl Controller {
         });
         self.stop_requested = false;
         Ok(())
+    }
+
+    /// A point (site frame) to make for instead of the slot, sent (at the latest) at
+    /// `sent_ms` in this robot's clock: the base station's way round what holds this
+    /// follower. It lapses `DETOUR_HOLD_MS` after the last one.
+    pub fn set_detour(&mut self, point: (f32, f32), sent_ms: u32) -> Result<(), NonFinite> {
+        if !(point.0.is_finite() && point.1.is_finite()) {
+            self.input_faults |= faults::NON_FINITE_INPUT;
+            return Err(NonFinite);
+        }
+        self.detour = Some((point, sent_ms));
+        Ok(())
+    }
+
+    /// Whether a detour holds now.
+    pub fn detour(&self, now_ms: u32) -> Option<(f32, f32)> {
+        self.detour
+            .filter(|(_, at)| self.is_fresh(*at, now_ms, DETOUR_HOLD_MS))
+            .map(|(p, _)| p)
     }
 
     /// A velocity command for the leader, sent (at the latest) at `sent_ms` in this
@@ -372,7 +394,13 @@ impl Controller {
             l_rate: (l2 - l) / H,
             phi_rate: math::wrap_angle(phi2 - phi) / H,
         };
-        let raw = follower::lphi_law(&now_leader, pose, &slot, &self.cfg.gains)?;
+        // A detour's point stands still in the world; the error stays the slot's.
+        let raw = match self.detour(now_ms) {
+            Some(point) => {
+                follower::toward(point, pose, self.cfg.gains.d, DETOUR_GAIN, DETOUR_SPEED)
+            }
+            None => follower::lphi_law(&now_leader, pose, &slot, &self.cfg.gains)?,
+        };
         let control_point = pose.ahead(self.cfg.gains.d);
         let error = math::hypot(control_point.0 - reference.0, control_point.1 - reference.1);
         self.reference = Some(reference);
@@ -457,6 +485,15 @@ impl Controller {
         }
     }
 }
+
+/// A detour lapses this long after the base station's last, ms: three periods, so a lost
+/// frame or two does not end it, and a station that stops sending (or is lost) does.
+const DETOUR_HOLD_MS: u32 = 350;
+/// A detour's point is made for at this gain (1/s) and at most this speed (m/s): a way
+/// point, passed at pace (the slot runs on meanwhile), slowing only in its last 0.35 m;
+/// the ring still caps the speed toward what it sees.
+const DETOUR_GAIN: f32 = 2.0;
+const DETOUR_SPEED: f32 = 0.7;
 
 /// A wheel that does not follow its set-point this long is stalled, ms.
 const STALL_MS: u32 = 1000;

@@ -136,6 +136,22 @@ pub fn lphi_law(
     }
 }
 
+/// The (v, ω) that moves the control point, `d` ahead, straight toward a point standing
+/// still in the world, at `gain` times the distance and at most `speed` (a detour's point:
+/// the L-φ law would close its bearing error at k2 times the distance, 0.15 m/s at
+/// 0.5 m).
+pub fn toward(point: (f32, f32), follower: &Pose, d: f32, gain: f32, speed: f32) -> Twist {
+    let (cx, cy) = follower.ahead(d);
+    let (ex, ey) = (point.0 - cx, point.1 - cy);
+    let scale = gain.min(speed / math::hypot(ex, ey).max(1e-6));
+    let (ux, uy) = (ex * scale, ey * scale);
+    let (s, c) = math::sin_cos(follower.heading);
+    Twist {
+        v: ux * c + uy * s,
+        omega: (uy * c - ux * s) / d,
+    }
+}
+
 /// The paper's form (divides by cos γ), for comparison in tests. `None` where
 /// |cos γ| < 1e-3.
 pub fn lphi_law_paper(

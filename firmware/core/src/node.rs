@@ -168,6 +168,10 @@ impl RobotNode {
                 wide: f.wide.to_si(),
                 line: f.line.to_si(),
             }),
+            Message::Detour(d) if self.identity.role == Role::Follower => c.set_detour(
+                (units::mm_to_metres(d.x_mm), units::mm_to_metres(d.y_mm)),
+                sent,
+            ),
             Message::PoseFix(fix) => {
                 let (x, y, heading) = fix.pose.to_si();
                 let sample = PoseFixSample {

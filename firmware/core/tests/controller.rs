@@ -315,3 +315,52 @@ fn the_ring_stops_a_robot_short_of_a_wall_without_crawling_up_to_it() {
     let last = speeds.last().unwrap();
     assert!(last.0 < 0.2 && last.1.abs() < 0.02, "{last:?}");
 }
+
+#[test]
+fn a_detour_is_driven_to_at_pace_and_lapses_back_to_the_slot() {
+    let mut s = Scene::new();
+    for _ in 0..100 {
+        s.step(true);
+    }
+    assert_eq!(s.c.mode(), RobotMode::InFormation);
+    // A point 1.5 m to the follower's left, standing still while the leader drives on.
+    let p = s.body.pose;
+    let point = (p.x + 0.5, p.y + 1.5);
+    let mut speeds = Vec::new();
+    for _ in 0..30 {
+        s.c.set_detour(point, s.t).unwrap();
+        s.step(true);
+        speeds.push(s.c.commanded().v);
+    }
+    let cp = s.body.pose.ahead(CFG.gains.d);
+    let off = (cp.0 - point.0).hypot(cp.1 - point.1);
+    assert!(
+        off < 0.1,
+        "the control point is {off:.3} m from the detour's point"
+    );
+    // A way point at pace, not crawled to as the L-φ law would (k2 · 1.5 m = 0.45 m/s,
+    // falling with the distance).
+    let top = speeds.iter().copied().fold(0.0, f32::max);
+    assert!(top > 0.6, "{top}");
+    // Its error is still the slot's: the slot ran on 1.5 m.
+    assert!(s.c.tracking_error().unwrap() > 1.0);
+    assert!(s.c.detour(s.t).is_some());
+
+    // No renewal: it lapses within four periods and the follower makes for its slot.
+    s.step(true);
+    s.step(true);
+    s.step(true);
+    s.step(true);
+    assert_eq!(s.c.detour(s.t), None);
+    for _ in 0..150 {
+        s.step(true);
+    }
+    assert_eq!(s.c.mode(), RobotMode::InFormation);
+    assert!(s.c.tracking_error().unwrap() < 0.05);
+
+    // A non-finite point is refused and flagged.
+    assert!(s.c.set_detour((f32::NAN, 0.0), s.t).is_err());
+    s.step(true);
+    assert!(s.c.faults() & faults::NON_FINITE_INPUT != 0);
+    assert_eq!(s.c.detour(s.t), None);
+}

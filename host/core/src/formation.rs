@@ -399,6 +399,14 @@ impl FormationManager {
         &self.events
     }
 
+    /// Follower k's reference point at the current blend, as its control core makes it,
+    /// with the leader at `leader` (`behind`: the leader's driven path from it, newest
+    /// first).
+    pub fn reference(&self, k: usize, leader: PlanPose, behind: &[DVec2]) -> DVec2 {
+        let (w, l) = reference_ends(leader, self.wide[k], self.line[k], behind, 0.0);
+        w.lerp(l, self.blend)
+    }
+
     /// Follower k's slot (L, φ) at the current blend, on the straight segment between its
     /// two slot points in the leader's frame (what the followers compute too).
     pub fn slot(&self, k: usize) -> (f64, f64) {

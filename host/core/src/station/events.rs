@@ -59,6 +59,11 @@ pub enum StationEvent {
         robot: u16,
         at_ms: u32,
     },
+    /// A follower held on its way was sent round the obstacle (a `Detour`).
+    FollowerDetour {
+        robot: u16,
+        at_ms: u32,
+    },
     /// A follower left behind is within 0.3 m of its reference again.
     FollowerCaughtUp {
         robot: u16,
@@ -90,6 +95,7 @@ impl StationEvent {
             E::NoRoute { at_ms, .. } => (*at_ms, "no_route".into(), None),
             E::Arrived { at_ms } => (*at_ms, "goal_reached".into(), None),
             E::FollowerBehind { robot, at_ms } => (*at_ms, "follower_behind".into(), Some(*robot)),
+            E::FollowerDetour { robot, at_ms } => (*at_ms, "follower_detour".into(), Some(*robot)),
             E::FollowerCaughtUp { robot, at_ms } => {
                 (*at_ms, "follower_caught_up".into(), Some(*robot))
             }

@@ -3,6 +3,7 @@
 //! modem or UDP and the wall clock; the simulator drives it from the simulated radio and
 //! the simulated clock. Same code, same bytes.
 
+mod detour;
 mod events;
 mod fixes;
 mod smoothing;
@@ -12,11 +13,12 @@ use std::collections::BTreeMap;
 use glam::DVec2;
 use protocol::link::{Event, Link, Timing};
 use protocol::messages::{
-    faults, EmergencyStop, FormationCommand, LeaderState, Message, PoseFix, Resume, RobotMode,
-    Slot, Stop, Telemetry, VelocityCommand, WirePose,
+    faults, Detour, EmergencyStop, FormationCommand, LeaderState, Message, PoseFix, Resume,
+    RobotMode, Slot, Stop, Telemetry, VelocityCommand, WirePose,
 };
 use protocol::{units, Address, FrameDecoder, MasterKey, Reject, RejectCounts, MAX_WIRE};
 
+use detour::Detours;
 pub use events::StationEvent;
 use events::REPORTED_FAULTS;
 use fixes::FixWatch;
@@ -230,6 +232,8 @@ pub struct BaseStation {
     driven: std::collections::VecDeque<DVec2>,
     /// The turn rate the followers are told, calmed where it only jitters.
     broadcast_omega: TurnRateSmoother,
+    /// Followers being sent round what holds them.
+    detours: Detours,
 }
 
 /// Spacing of the paths the formation manager looks along, m.
@@ -319,6 +323,7 @@ impl BaseStation {
             driven: std::collections::VecDeque::new(),
             broadcast_omega: TurnRateSmoother::default(),
             last_command: (0.0, 0.0),
+            detours: Detours::default(),
         }
     }
 
@@ -668,6 +673,8 @@ impl BaseStation {
                 .push(StationEvent::Transformation { to, at_ms: now_ms });
         }
 
+        self.send_detours(leader.pose, &behind, now_ms);
+
         let half_width = self.formation.half_width();
         // Only the wide slots swing round the leader; the line follows its trail. Until
         // the formation is all line, the wide slots' full reach counts: half way through a
@@ -781,6 +788,64 @@ impl BaseStation {
                 blend: (blend.clamp(0.0, 1.0) * 255.0).round() as u8,
             });
             self.send(Address::Broadcast, now_ms, &state);
+        }
+    }
+
+    /// Detours for the followers held on their way ([`detour`]), sent every period.
+    fn send_detours(&mut self, leader: PlanPose, behind: &[DVec2], now_ms: u32) {
+        let mut followers = Vec::new();
+        for (k, id) in self.cfg.followers.iter().enumerate() {
+            let Some(t) = self.fresh(*id, now_ms).and_then(|s| s.telemetry) else {
+                continue;
+            };
+            if !is_following(t.mode) {
+                continue;
+            }
+            let (x, y, _) = t.pose.to_si();
+            followers.push(detour::Follower {
+                id: *id,
+                position: DVec2::new(x as f64, y as f64),
+                reference: self.formation.reference(k, leader, behind),
+                error: t.tracking_error_mm as f64 / 1000.0,
+            });
+        }
+        let robots: Vec<(u16, DVec2)> = self
+            .robots
+            .keys()
+            .filter_map(|id| {
+                let t = self.fresh(*id, now_ms)?.telemetry?;
+                let (x, y, _) = t.pose.to_si();
+                Some((*id, DVec2::new(x as f64, y as f64)))
+            })
+            .collect();
+        let footprint = self.formation.spec().footprint;
+        let detours = self
+            .detours
+            .step(now_ms, &self.world, footprint, &followers, &robots);
+        for (robot, point, new) in detours {
+            if new {
+                tracing::info!(
+                    robot,
+                    x = point.x,
+                    y = point.y,
+                    "follower sent round an obstacle"
+                );
+                self.events.push(StationEvent::FollowerDetour {
+                    robot,
+                    at_ms: now_ms,
+                });
+            }
+            let (Ok(x_mm), Ok(y_mm)) = (
+                units::metres_to_mm(point.x as f32),
+                units::metres_to_mm(point.y as f32),
+            ) else {
+                continue;
+            };
+            self.send(
+                Address::Robot(robot),
+                now_ms,
+                &Message::Detour(Detour { x_mm, y_mm }),
+            );
         }
     }
 
