@@ -29,6 +29,8 @@ const WAY_MARGIN_M: f64 = 0.15;
 const POINT_MARGIN_M: f64 = 0.25;
 /// What a detour keeps from other robots, centre to centre beyond two footprints, m.
 const ROBOT_MARGIN_M: f64 = 0.4;
+/// A detour point may be this much farther from the reference than the follower, m.
+const AWAY_M: f64 = 0.5;
 /// A follower whose centre is this close to its detour point has got there, m (its law
 /// steers a control point 0.2 m ahead of the centre onto the point, ever slower).
 const THERE_M: f64 = 0.5;
@@ -140,9 +142,11 @@ impl Detours {
         candidates
             .flat_map(|dir| DISTANCES_M.map(|d| f.position + dir * d))
             .filter(|p| {
-                // Nearer the reference, free, and reached without coming closer to a
-                // surface than the follower stands now (or than the margin, away from it).
-                p.distance(f.reference) < length
+                // Not much farther from the reference (a bin right ahead of a near
+                // reference is gone round sideways), free, and reached without coming
+                // closer to a surface than the follower stands now (or than the margin,
+                // away from it).
+                p.distance(f.reference) < length + AWAY_M
                     && map.clearance(*p, footprint + POINT_MARGIN_M) >= footprint + POINT_MARGIN_M
                     && way_keeps(map, f.position, *p, here, footprint + WAY_MARGIN_M)
                     && others.iter().all(|q| {
