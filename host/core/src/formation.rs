@@ -312,6 +312,9 @@ pub struct FollowerStatus {
     pub position: DVec2,
     pub error: f64,
     pub joined: bool,
+    /// Being sent round an obstacle by the station (`Detour`): on its way, though not
+    /// the straight one.
+    pub detouring: bool,
 }
 
 /// The leader's pose and how it drives: forward speed `v` (m/s), turn rate `omega` (rad/s).
@@ -664,6 +667,7 @@ impl FormationManager {
     /// 0.12 m from a street's wall). One held behind a bin its reference has passed is not
     /// waited for: only the change can take its reference off the bin's far side (waited
     /// for, a 5-follower V's last stood behind a bin while the leader crept on to the goal).
+    /// One the station is sending round it is waited for: it is on its way.
     fn lag_pace(
         &self,
         leader: PlanPose,
@@ -680,9 +684,10 @@ impl FormationManager {
                 let (w, l) = reference_ends(leader, *wide, *line, behind, 0.0);
                 let to = w.lerp(l, self.blend);
                 // From the first step beyond where it stands: it may stand close to a bin.
-                let clear = way_points(f.position, to)
-                    .skip(1)
-                    .all(|p| map.clearance(p, need) >= need);
+                let clear = f.detouring
+                    || way_points(f.position, to)
+                        .skip(1)
+                        .all(|p| map.clearance(p, need) >= need);
                 clear.then_some(f.error)
             })
             .fold(0.0, f64::max);

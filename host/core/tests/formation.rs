@@ -35,6 +35,7 @@ fn at_their_slots(fm: &FormationManager, leader: PlanPose) -> Vec<Option<Followe
                 position,
                 error: 0.0,
                 joined: true,
+                detouring: false,
             })
         })
         .collect()
@@ -279,6 +280,7 @@ fn into_the_line(hold: Option<DVec2>, extra: Option<Obstacle>) -> (f64, f64, DVe
                 position: at,
                 error: (at - fm.slot_points(leader)[0]).length(),
                 joined: true,
+                detouring: false,
             });
         }
         let (ahead, behind) = paths(leader, &driven);

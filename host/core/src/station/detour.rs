@@ -111,6 +111,11 @@ impl Detours {
         out
     }
 
+    /// Whether `follower` is being sent round now.
+    pub fn is_active(&self, follower: u16) -> bool {
+        self.active.contains_key(&follower)
+    }
+
     /// A point to go round by, if the follower is held and one is free.
     fn way_round(
         &self,

@@ -575,6 +575,7 @@ impl BaseStation {
                     position: DVec2::new(x as f64, y as f64),
                     error: t.tracking_error_mm as f64 / 1000.0,
                     joined: status.joined,
+                    detouring: self.detours.is_active(*id),
                 })
             })
             .collect()
@@ -682,9 +683,23 @@ impl BaseStation {
         // too, and a turn the half reach allowed swung it at 1.5 m/s, out of its
         // follower's reach (1.5 m off).
         let swinging = if blend >= 1.0 { 0.0 } else { 1.0 };
+        // The leader waits for a follower falling behind: it slows, and it swings the
+        // slots slower too (turning on the spot at 0.1 rad/s, it swung a 5-V's rear slot
+        // on at 0.65 m/s from a follower going round a bin).
+        let worst = statuses
+            .iter()
+            .flatten()
+            .map(|f| f.error)
+            .fold(0.0, f64::max);
+        let over = worst - self.cfg.wait_for_followers_above;
+        let waiting = if over > 0.0 {
+            (1.0 - over / 0.5).max(0.2)
+        } else {
+            1.0
+        };
         self.planner.set_formation(
             self.formation.wide_reach() * swinging,
-            self.cfg.follower_speed,
+            self.cfg.follower_speed * waiting,
             self.cfg.follower_accel,
         );
         if !self.ready {
@@ -709,17 +724,6 @@ impl BaseStation {
             tracing::info!("fleet ready");
             self.events.push(StationEvent::FleetReady { at_ms: now_ms });
         }
-        let worst = statuses
-            .iter()
-            .flatten()
-            .map(|f| f.error)
-            .fold(0.0, f64::max);
-        let over = worst - self.cfg.wait_for_followers_above;
-        let waiting = if over > 0.0 {
-            (1.0 - over / 0.5).max(0.2)
-        } else {
-            1.0
-        };
         let speed_scale = waiting.min(self.formation.speed_factor(now_s));
         let was_arrived = self.planner.arrived();
         let cmd = self.planner.step(
