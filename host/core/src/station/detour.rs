@@ -31,14 +31,13 @@ const POINT_MARGIN_M: f64 = 0.25;
 const ROBOT_MARGIN_M: f64 = 0.4;
 /// A detour point may be this much farther from the reference than the follower, m.
 const AWAY_M: f64 = 0.5;
-/// A follower whose centre is this close to its detour point has got there, m (its law
-/// steers a control point 0.2 m ahead of the centre onto the point, ever slower).
+/// A follower whose centre is this close to its detour point has got there, m (it steers
+/// its control point, 0.2 m ahead of its centre, onto the point).
 const THERE_M: f64 = 0.5;
 /// A detour is given up after this long (then looked at afresh), ms.
 const GIVE_UP_MS: u32 = 10_000;
 /// Candidate points: these bearings off the straight way, both sides, at these distances
-/// (the follower's law makes for a point at its gain times the distance: a near point is
-/// crawled to).
+/// (the follower slows in a point's last 0.35 m: a far one is passed at pace).
 const BEARINGS_DEG: [f64; 9] = [20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0];
 const DISTANCES_M: [f64; 4] = [0.8, 1.2, 1.6, 2.0];
 /// Where a follower stands close to a surface, a way may keep only what it has for this
@@ -175,7 +174,7 @@ impl Detours {
     }
 }
 
-/// Points from `a` toward `b`, `STEP_M` apart, at most `LOOK_M` of them, `a` excluded.
+/// Points from `a` toward `b`, `STEP_M` apart, at most `length` along, `a` excluded.
 fn way(a: DVec2, b: DVec2, length: f64) -> impl Iterator<Item = DVec2> {
     let d = b - a;
     let len = d.length().min(length);
