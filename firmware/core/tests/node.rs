@@ -105,6 +105,18 @@ fn follower_links_follows_and_reports() {
     let rejects = node.link().stats().rejects;
     assert_eq!(last.link.rejected, 2);
     assert_eq!(rejects.get(protocol::Reject::UnknownSession), 2);
+
+    // A detour from the base station reaches the controller, in metres.
+    let now = 3000;
+    assert_eq!(node.controller().detour(now), None);
+    let detour = Message::Detour(Detour {
+        x_mm: 2_500,
+        y_mm: -750,
+    });
+    let n = base.send(Address::Robot(1), now, &detour, &mut buf).unwrap();
+    node.receive(&buf[..n], now, &mut |_| {});
+    assert_eq!(node.controller().detour(now + 100), Some((2.5, -0.75)));
+    assert_eq!(node.controller().detour(now + 400), None, "lapses unrenewed");
 }
 
 /// Issue 15, item 1: a robot whose boot count repeats (power lost during the counter's
