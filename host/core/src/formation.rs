@@ -208,9 +208,8 @@ const WAY_STEP: f64 = 0.25;
 /// How far ahead a shape change's pace looks, s (the station's period).
 const PACE_HORIZON_S: f64 = 0.1;
 /// The fastest a shape change moves a slot point in the world, as a fraction of the
-/// robots' top speed: a follower needs some speed in hand to close a gap (a rear follower
-/// the ring slowed past a bin fell 0.36–0.40 m behind a slot run at the top speed).
-const PACE_SPEED_OF_TOP: f64 = 0.8;
+/// robots' top speed.
+const PACE_SPEED_OF_TOP: f64 = 1.0;
 /// A shape change slows for a follower this far off its reference, m …
 const LAG_FROM_M: f64 = 0.15;
 /// … and stands still for one this much further off, m.
