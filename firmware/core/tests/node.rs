@@ -113,10 +113,16 @@ fn follower_links_follows_and_reports() {
         x_mm: 2_500,
         y_mm: -750,
     });
-    let n = base.send(Address::Robot(1), now, &detour, &mut buf).unwrap();
+    let n = base
+        .send(Address::Robot(1), now, &detour, &mut buf)
+        .unwrap();
     node.receive(&buf[..n], now, &mut |_| {});
     assert_eq!(node.controller().detour(now + 100), Some((2.5, -0.75)));
-    assert_eq!(node.controller().detour(now + 400), None, "lapses unrenewed");
+    assert_eq!(
+        node.controller().detour(now + 400),
+        None,
+        "lapses unrenewed"
+    );
 }
 
 /// Issue 15, item 1: a robot whose boot count repeats (power lost during the counter's
