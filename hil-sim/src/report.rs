@@ -106,6 +106,16 @@ pub struct Report {
     pub station_events: Vec<StationEventReport>,
 }
 
+impl Report {
+    /// The station events of one name (`follower_detour`, `replanned`, …), in order.
+    pub fn events_named<'a>(
+        &'a self,
+        name: &'a str,
+    ) -> impl Iterator<Item = &'a StationEventReport> + 'a {
+        self.station_events.iter().filter(move |e| e.event == name)
+    }
+}
+
 /// Follower errors of a sample (all followers), if every one is known.
 fn errors(s: &Sample) -> Vec<f64> {
     s.robots.iter().filter_map(|r| r.error).collect()

@@ -127,11 +127,7 @@ fn check_way_then(
         .iter()
         .filter_map(common::own_straight_omega)
         .fold(0.0, f64::max);
-    let detours = r
-        .station_events
-        .iter()
-        .filter(|e| e.event == "follower_detour")
-        .count();
+    let detours = r.events_named("follower_detour").count();
     let mut line = format!(
         "{:<34} goal {:>6} contacts {} min clearance {:.2} m joined {:>5.1} s max error {worst:.3} m straight |ω| {jitter:.3} ({legs:.0} s) own {own_jitter:.3} changes {changes} sections {sections} detours {detours}",
         g.name,
@@ -277,9 +273,7 @@ fn a_follower_held_behind_a_bin_is_sent_round_it_and_catches_up() {
     let s = Scenario::parse(&g.toml, &g.name).expect("parses");
     let (r, world) = common::run(s, 10);
     let events = |name: &str| {
-        r.station_events
-            .iter()
-            .filter(|e| e.event == name)
+        r.events_named(name)
             .map(|e| (e.robot, e.at_s))
             .collect::<Vec<_>>()
     };
@@ -321,11 +315,7 @@ fn a_follower_held_behind_a_bin_is_sent_round_it_and_catches_up() {
 /// [`check_way`], and the run must have planned again at least once.
 fn check_replanned(g: &Generated, seed: u64) -> Result<String, String> {
     check_way_then(g, seed, |r| {
-        let replans = r
-            .station_events
-            .iter()
-            .filter(|e| e.event == "replanned")
-            .count();
+        let replans = r.events_named("replanned").count();
         if replans == 0 {
             Err("never planned again".to_string())
         } else {

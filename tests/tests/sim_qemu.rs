@@ -196,11 +196,7 @@ fn identical_to_native_going_round_a_bin() {
     let g = generate::bin_field(110, 45, 5);
     let s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
     let r = assert_identical(s, 10);
-    let detours = r
-        .station_events
-        .iter()
-        .filter(|e| e.event == "follower_detour")
-        .count();
+    let detours = r.events_named("follower_detour").count();
     assert!(detours > 0, "{}: no detour", g.name);
 }
 

@@ -677,11 +677,11 @@ impl FormationManager {
         let need = self.spec.footprint + LAG_WAY_MARGIN;
         let worst = followers
             .iter()
-            .zip(self.wide.iter().zip(&self.line))
-            .filter_map(|(f, (wide, line))| {
+            .take(self.wide.len())
+            .enumerate()
+            .filter_map(|(k, f)| {
                 let f = (*f).filter(|f| f.joined && f.error > LAG_FROM_M)?;
-                let (w, l) = reference_ends(leader, *wide, *line, behind, 0.0);
-                let to = w.lerp(l, self.blend);
+                let to = self.reference(k, leader, behind);
                 // From the first step beyond where it stands: it may stand close to a bin.
                 let clear = f.detouring
                     || way_points(f.position, to)

@@ -35,7 +35,8 @@ pub struct Nearest {
     pub normal: DVec2,
 }
 
-fn closest_on_segment(p: DVec2, a: DVec2, b: DVec2) -> DVec2 {
+/// The point of segment a–b nearest to `p`.
+pub(crate) fn closest_on_segment(p: DVec2, a: DVec2, b: DVec2) -> DVec2 {
     let ab = b - a;
     let len2 = ab.length_squared();
     if len2 == 0.0 {

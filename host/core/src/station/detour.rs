@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 
 use glam::DVec2;
 
+use crate::geometry::closest_on_segment;
 use crate::map::Map;
 
 /// A follower at least this far from its reference (by its telemetry) may be sent round,
@@ -155,7 +156,7 @@ impl Detours {
                     && way_keeps(map, f.position, *p, here, footprint + WAY_MARGIN_M)
                     && others.iter().all(|q| {
                         q.distance(*p) >= apart
-                            && distance_to_segment(*q, f.position, *p)
+                            && q.distance(closest_on_segment(*q, f.position, *p))
                                 >= apart.min(q.distance(f.position))
                     })
             })
@@ -200,12 +201,6 @@ fn way_keeps(map: &Map, from: DVec2, to: DVec2, here: f64, need: f64) -> bool {
         let c = map.clearance(p, need);
         c >= need || (p.distance(from) <= NEAR_M && c >= here - 1e-3)
     })
-}
-
-fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
-    let ab = b - a;
-    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
-    p.distance(a + ab * t)
 }
 
 #[cfg(test)]
@@ -292,7 +287,8 @@ mod tests {
                 "{point}"
             );
             assert!(
-                distance_to_segment(neighbour, f.position, *point) >= 2.0 * FP + ROBOT_MARGIN_M,
+                neighbour.distance(closest_on_segment(neighbour, f.position, *point))
+                    >= 2.0 * FP + ROBOT_MARGIN_M,
                 "{point}"
             );
         }

@@ -94,6 +94,12 @@ fn is_following(mode: RobotMode) -> bool {
     )
 }
 
+/// Where a robot's telemetry says it is, m.
+fn position(t: &Telemetry) -> DVec2 {
+    let (x, y, _) = t.pose.to_si();
+    DVec2::new(x as f64, y as f64)
+}
+
 impl RobotStatus {
     /// Whether a joined follower has now been left behind, or has caught up again.
     fn watch_behind(&mut self, robot: u16, t: &Telemetry, now_ms: u32) -> Option<StationEvent> {
@@ -570,9 +576,8 @@ impl BaseStation {
             .map(|id| {
                 let status = self.fresh(*id, now_ms)?;
                 let t = status.telemetry?;
-                let (x, y, _) = t.pose.to_si();
                 Some(FollowerStatus {
-                    position: DVec2::new(x as f64, y as f64),
+                    position: position(&t),
                     error: t.tracking_error_mm as f64 / 1000.0,
                     joined: status.joined,
                     detouring: self.detours.is_active(*id),
@@ -805,10 +810,9 @@ impl BaseStation {
             if !is_following(t.mode) {
                 continue;
             }
-            let (x, y, _) = t.pose.to_si();
             followers.push(detour::Follower {
                 id: *id,
-                position: DVec2::new(x as f64, y as f64),
+                position: position(&t),
                 reference: self.formation.reference(k, leader, behind),
                 error: t.tracking_error_mm as f64 / 1000.0,
             });
@@ -818,8 +822,7 @@ impl BaseStation {
             .keys()
             .filter_map(|id| {
                 let t = self.fresh(*id, now_ms)?.telemetry?;
-                let (x, y, _) = t.pose.to_si();
-                Some((*id, DVec2::new(x as f64, y as f64)))
+                Some((*id, position(&t)))
             })
             .collect();
         let footprint = self.formation.spec().footprint;
