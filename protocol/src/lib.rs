@@ -72,11 +72,14 @@ pub enum Reject {
     /// Authentic but too old by the sender's clock (a delaying relay, or a handshake whose
     /// round trip is too long to trust the clock offset it gives).
     Stale = 9,
+    /// Authentic, but broadcast where only a unicast is accepted (a robot holding the
+    /// broadcast key forging a command for another).
+    WrongDestination = 10,
 }
 
 impl Reject {
     /// Every reason, in wire order.
-    pub const ALL: [Reject; 10] = [
+    pub const ALL: [Reject; 11] = [
         Reject::BadCobs,
         Reject::TooLong,
         Reject::Truncated,
@@ -87,6 +90,7 @@ impl Reject {
         Reject::Replay,
         Reject::Malformed,
         Reject::Stale,
+        Reject::WrongDestination,
     ];
 
     /// A short snake_case name for logs and reports.
@@ -102,6 +106,7 @@ impl Reject {
             Reject::Replay => "replay",
             Reject::Malformed => "malformed",
             Reject::Stale => "stale",
+            Reject::WrongDestination => "wrong_destination",
         }
     }
 }

@@ -32,7 +32,7 @@ const CHALLENGE_LIFETIME_MS: u32 = 3000;
 
 use crate::auth::FleetKey;
 use crate::frame::{self, Address, EncodeError, Header};
-use crate::messages::{Hello, Message, Welcome};
+use crate::messages::{Destination, Hello, Message, Welcome};
 use crate::{Reject, RejectCounts, PROTOCOL_VERSION};
 
 /// When to (re)challenge a peer.
@@ -369,6 +369,10 @@ impl<const PEERS: usize> Link<PEERS> {
             _ => &self.peers[i].key,
         };
         let (header, message) = frame::open(key, raw, |_| session.ok_or(Reject::UnknownSession))?;
+        if to == Address::Broadcast && Message::destination(header.id) == Some(Destination::Unicast)
+        {
+            return Err(Reject::WrongDestination);
+        }
         let timing = self.timing;
         let peer = &mut self.peers[i];
         match message {

@@ -221,8 +221,19 @@ pub struct Welcome {
     pub broadcast_seq: u32,
 }
 
+/// Where a message may be addressed: the wire table's third column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Destination {
+    /// To every robot (broadcast key) or to one (its own key).
+    Any,
+    /// To one node only, under its own key: a broadcast of it is refused, so the broadcast
+    /// key every robot holds cannot forge it.
+    Unicast,
+}
+
 macro_rules! messages {
-    ($($id:literal => $name:ident, $path:literal;)*) => {
+    ($($id:literal => $name:ident, $path:literal, $dest:ident;)*) => {
         /// Any message, for dispatch after decoding.
         #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
         #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -253,6 +264,14 @@ macro_rules! messages {
             pub fn name(&self) -> &'static str {
                 match self {
                     $(Message::$name(_) => stringify!($name),)*
+                }
+            }
+
+            /// Where a message id may be addressed (`None`: an unknown id).
+            pub fn destination(id: u8) -> Option<Destination> {
+                match id {
+                    $($id => Some(Destination::$dest),)*
+                    _ => None,
                 }
             }
 
@@ -287,19 +306,21 @@ macro_rules! messages {
     };
 }
 
+// id => message, schema path, destination. Only what every robot must hear at once may
+// be broadcast; whatever drives or places one robot is unicast under that robot's key.
 messages! {
-    0 => LeaderState, "sweeper/v1/leader_state";
-    1 => VelocityCommand, "sweeper/v1/velocity_command";
-    2 => PoseFix, "sweeper/v1/pose_fix";
-    3 => Telemetry, "sweeper/v1/telemetry";
-    4 => FormationCommand, "sweeper/v1/formation_command";
-    5 => Heartbeat, "sweeper/v1/heartbeat";
-    6 => Stop, "sweeper/v1/stop";
-    7 => EmergencyStop, "sweeper/v1/emergency_stop";
-    8 => Resume, "sweeper/v1/resume";
-    9 => Hello, "sweeper/v1/hello";
-    10 => Welcome, "sweeper/v1/welcome";
-    11 => Detour, "sweeper/v1/detour";
+    0 => LeaderState, "sweeper/v1/leader_state", Any;
+    1 => VelocityCommand, "sweeper/v1/velocity_command", Unicast;
+    2 => PoseFix, "sweeper/v1/pose_fix", Unicast;
+    3 => Telemetry, "sweeper/v1/telemetry", Unicast;
+    4 => FormationCommand, "sweeper/v1/formation_command", Unicast;
+    5 => Heartbeat, "sweeper/v1/heartbeat", Any;
+    6 => Stop, "sweeper/v1/stop", Any;
+    7 => EmergencyStop, "sweeper/v1/emergency_stop", Any;
+    8 => Resume, "sweeper/v1/resume", Any;
+    9 => Hello, "sweeper/v1/hello", Unicast;
+    10 => Welcome, "sweeper/v1/welcome", Unicast;
+    11 => Detour, "sweeper/v1/detour", Unicast;
 }
 
 impl Message {

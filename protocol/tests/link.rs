@@ -515,3 +515,72 @@ fn a_captured_robot_cannot_impersonate_another_robot_or_the_base_stations_unicas
         Ok(Event::Message { .. })
     ));
 }
+
+/// Issue 27, finding 5: the broadcast key every robot holds cannot forge what drives or
+/// places one robot. A broadcast `VelocityCommand`, `Detour`, `PoseFix`,
+/// `FormationCommand`, `Hello` or `Welcome` is refused as `wrong_destination` even though
+/// its tag verifies; the broadcasts a robot must hear (leader state, stop, emergency stop,
+/// resume) are still taken.
+#[test]
+fn a_broadcast_of_a_unicast_only_message_is_refused_however_well_signed() {
+    let mut b = base(77);
+    let mut r1 = robot(1, 5);
+    robot_links_to(&mut r1, &mut b, 0);
+    // A captured robot 2 speaking as the base station with the broadcast key.
+    let mut as_base = Base::new(Address::Base, key(), b.session(), 0, Timing::default());
+    as_base.add_peer(Address::Robot(1), master().robot(2));
+    for _ in 0..100 {
+        wire(&mut as_base, Address::Broadcast, 350, leader_state(0));
+    }
+    let pose = WirePose::from_si(5.0, 5.0, 0.0).unwrap();
+    let unicast_only = [
+        Message::VelocityCommand(VelocityCommand {
+            v_mm_s: 1500,
+            omega_mrad_s: 0,
+        }),
+        Message::Detour(Detour {
+            x_mm: 9000,
+            y_mm: 9000,
+        }),
+        Message::PoseFix(PoseFix { pose, sigma_mm: 10 }),
+        Message::FormationCommand(FormationCommand {
+            followers: 2,
+            index: 0,
+            wide: Slot::default(),
+            line: Slot::default(),
+        }),
+        Message::Hello(Hello { nonce: u64::MAX }),
+        Message::Welcome(Welcome {
+            nonce: 1,
+            session: 1,
+            broadcast_seq: 0,
+        }),
+    ];
+    let mut t = 400;
+    for m in unicast_only {
+        t += 10;
+        let forged = wire(&mut as_base, Address::Broadcast, t, m);
+        assert_eq!(
+            deliver(&mut r1, &forged, t),
+            vec![Err(Reject::WrongDestination)],
+            "{}",
+            m.name()
+        );
+    }
+    for m in [
+        leader_state(7),
+        Message::Stop(Stop { reason: 0 }),
+        Message::EmergencyStop(EmergencyStop { reason: 0 }),
+        Message::Resume(Resume { reason: 0 }),
+    ] {
+        t += 10;
+        let sent = wire(&mut as_base, Address::Broadcast, t, m);
+        assert!(
+            matches!(deliver(&mut r1, &sent, t)[0], Ok(Event::Message { .. })),
+            "{}",
+            m.name()
+        );
+    }
+    let counts = r1.peer(Address::Base).unwrap().rejects;
+    assert_eq!(counts.get(Reject::WrongDestination), 6);
+}

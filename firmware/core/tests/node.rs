@@ -188,3 +188,118 @@ fn a_repeated_boot_count_does_not_reopen_a_recorded_session() {
         "its leader states"
     );
 }
+
+/// A node of `role` linked to a base station over real frames, placed by a first fix at
+/// (2, 1.5); the clock at the end.
+fn linked_node(role: Role) -> (Link<4>, RobotNode, u32) {
+    let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
+    base.add_peer(Address::Robot(1), robot_key());
+    let id = Identity {
+        id: 1,
+        role,
+        boot_count: 3,
+        entropy: 0x1234_5678,
+    };
+    let mut node = RobotNode::new(id, key(), robot_key(), RobotConfig::DEFAULT);
+    let (mut to_base, mut to_robot) = (Vec::new(), Vec::new());
+    let mut dec = FrameDecoder::new();
+    let mut buf = [0u8; MAX_WIRE];
+    let fix = Sensors {
+        pose_fix: Some(PoseFixSample {
+            pose: Pose::new(2.0, 1.5, 0.0),
+            sigma: 0.02,
+            time_ms: 0,
+        }),
+        ..Sensors::default()
+    };
+    for i in 0..10u32 {
+        let now = i * 100;
+        for b in std::mem::take(&mut to_base) {
+            if let Some(frame) = dec.push(b) {
+                if let Ok(Event::Challenged { from, nonce }) = base.receive(frame, now) {
+                    let n = base.answer(from, nonce, now, &mut buf).unwrap();
+                    to_robot.extend_from_slice(&buf[..n]);
+                }
+            }
+        }
+        if let Some(peer) = base.due_challenge(now) {
+            let n = base.challenge(peer, now, &mut buf).unwrap();
+            to_robot.extend_from_slice(&buf[..n]);
+        }
+        node.receive(&std::mem::take(&mut to_robot), now, &mut |b| {
+            to_base.extend_from_slice(b)
+        });
+        let sensors = if i == 0 { fix } else { Sensors::default() };
+        node.tick(now, &sensors, &mut |b| to_base.extend_from_slice(b));
+    }
+    assert!(node.link().peer(Address::Base).unwrap().is_linked());
+    (base, node, 1000)
+}
+
+/// Issue 27, finding 5: a robot taken apart holds the broadcast key, and used to drive the
+/// leader, send followers anywhere and move their believed pose with it. The node takes a
+/// velocity command, a detour, a pose fix and slots only when they are addressed to it
+/// under its own key; the same frames broadcast are refused (`wrong_destination`).
+#[test]
+fn commands_for_one_robot_are_taken_only_when_addressed_to_it() {
+    let send = |base: &mut Link<4>, to: Address, now: u32, m: Message| {
+        let mut buf = [0u8; MAX_WIRE];
+        let n = base.send(to, now, &m, &mut buf).unwrap();
+        buf[..n].to_vec()
+    };
+    // The leader: a broadcast command at 1.5 m/s moves nothing.
+    let (mut base, mut leader, now) = linked_node(Role::Leader);
+    let fast = Message::VelocityCommand(VelocityCommand {
+        v_mm_s: 1500,
+        omega_mrad_s: 0,
+    });
+    let forged = send(&mut base, Address::Broadcast, now, fast);
+    leader.receive(&forged, now, &mut |_| {});
+    leader.tick(now + 100, &Sensors::default(), &mut |_| {});
+    assert_eq!(leader.controller().commanded().v, 0.0);
+    let genuine = send(&mut base, Address::Robot(1), now + 100, fast);
+    leader.receive(&genuine, now + 100, &mut |_| {});
+    leader.tick(now + 200, &Sensors::default(), &mut |_| {});
+    assert!(
+        leader.controller().commanded().v > 0.0,
+        "the unicast drives"
+    );
+
+    // A follower: a broadcast detour, fix and slots change nothing.
+    let (mut base, mut follower, now) = linked_node(Role::Follower);
+    let before = follower.controller().pose().unwrap();
+    let slots_before = follower.controller().slots();
+    let fix = Message::PoseFix(PoseFix {
+        pose: WirePose::from_si(before.x + 0.4, before.y, before.heading).unwrap(),
+        sigma_mm: 10,
+    });
+    let detour = Message::Detour(Detour {
+        x_mm: 30_000,
+        y_mm: 30_000,
+    });
+    let slots = Message::FormationCommand(FormationCommand {
+        followers: 1,
+        index: 0,
+        wide: Slot::from_si(9.0, 0.0).unwrap(),
+        line: Slot::from_si(9.0, 0.0).unwrap(),
+    });
+    for (k, m) in [fix, detour, slots].into_iter().enumerate() {
+        let t = now + 10 * k as u32;
+        let forged = send(&mut base, Address::Broadcast, t, m);
+        follower.receive(&forged, t, &mut |_| {});
+    }
+    assert_eq!(follower.controller().detour(now + 50), None);
+    assert_eq!(follower.controller().pose().unwrap(), before);
+    assert_eq!(follower.controller().slots(), slots_before);
+    let rejects = follower.link().stats().rejects;
+    assert_eq!(rejects.get(protocol::Reject::WrongDestination), 3);
+    // Addressed to it, each is taken.
+    for (k, m) in [fix, detour, slots].into_iter().enumerate() {
+        let t = now + 100 + 10 * k as u32;
+        let genuine = send(&mut base, Address::Robot(1), t, m);
+        follower.receive(&genuine, t, &mut |_| {});
+    }
+    assert_eq!(follower.controller().detour(now + 150), Some((30.0, 30.0)));
+    assert_ne!(follower.controller().pose().unwrap(), before);
+    assert_ne!(follower.controller().slots(), slots_before);
+}
