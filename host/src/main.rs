@@ -31,6 +31,11 @@ enum Command {
     Robots(cli::robots::RobotsArgs),
     /// Write a robot's configuration page (id, role, fleet key) for flashing.
     RobotConfig(cli::robot_config::RobotConfigArgs),
+    /// Write the key of one localization or scan source of the site.
+    FeedKey(cli::feed_key::FeedKeyArgs),
+    /// Seal lines (standard input, a serial port, a TCP stream) with a source's key and
+    /// send them to the base station's feed.
+    FeedRelay(cli::feed_relay::FeedRelayArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -53,6 +58,8 @@ fn main() -> std::process::ExitCode {
         Command::Sim(args) => cli::sim::run(args),
         Command::Robots(args) => cli::robots::run(args),
         Command::RobotConfig(args) => cli::robot_config::run(args),
+        Command::FeedKey(args) => cli::feed_key::run(args),
+        Command::FeedRelay(args) => cli::feed_relay::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

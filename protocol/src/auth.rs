@@ -133,6 +133,13 @@ impl MasterKey {
         self.derive(b"sweeper/v1/robot", &id.to_le_bytes())
     }
 
+    /// The key of one localization or scan source of the site (`basestation feed-key`):
+    /// the MAC of its datagrams to the base station. Not a robot's: a source that is taken
+    /// apart can speak as itself only.
+    pub fn source_bytes(&self, name: &str) -> [u8; 32] {
+        self.derive(b"sweeper/v1/source", name.as_bytes())
+    }
+
     pub fn broadcast(&self) -> FleetKey {
         let mut bytes = self.broadcast_bytes();
         let key = FleetKey::from_bytes(&bytes);
@@ -204,6 +211,8 @@ mod tests {
             m.broadcast_bytes(),
             m.robot_bytes(0),
             m.robot_bytes(1),
+            m.source_bytes("fixes"),
+            m.source_bytes("scan"),
             [5; 32],
         ];
         for (i, a) in keys.iter().enumerate() {

@@ -26,6 +26,9 @@ const RELOCALIZE_AFTER: u8 = 50;
 /// A fix with this σ counts half as much as a perfect one: the blending gain is
 /// `fix_gain / (1 + (σ / FIX_SIGMA_REF)²)`, so a vaguer fix pulls less (m).
 const FIX_SIGMA_REF: f32 = 0.1;
+/// A fix whose heading is farther than this from the odometry's is an outlier too, rad
+/// (20°: a localization's heading is good to a degree or two).
+const HEADING_GATE: f32 = 0.35;
 
 /// A pose fix, time already in this robot's clock.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -150,7 +153,8 @@ impl Odometry {
 
     /// Blends a pose fix in.
     pub fn apply_fix(&mut self, fix: &PoseFixSample, now_ms: u32, cfg: &RobotConfig) -> FixOutcome {
-        if !fix.pose.is_finite() || !fix.sigma.is_finite() || fix.sigma < 0.0 {
+        // σ = 0 claims a perfect fix: no localization system can, so it is not one.
+        if !fix.pose.is_finite() || !fix.sigma.is_finite() || fix.sigma <= 0.0 {
             return FixOutcome::Invalid;
         }
         let Some(current) = self.pose else {
@@ -167,7 +171,7 @@ impl Odometry {
         let ix = fix.pose.x - then.x;
         let iy = fix.pose.y - then.y;
         let ih = math::wrap_angle(fix.pose.heading - then.heading);
-        if math::hypot(ix, iy) > cfg.fix_gate + 3.0 * fix.sigma {
+        if math::hypot(ix, iy) > cfg.fix_gate + 3.0 * fix.sigma || math::abs(ih) > HEADING_GATE {
             self.fixes_rejected += 1;
             self.outliers_in_row = self.outliers_in_row.saturating_add(1);
             if self.outliers_in_row < RELOCALIZE_AFTER {

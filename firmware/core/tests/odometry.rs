@@ -97,3 +97,24 @@ fn a_vaguer_fix_pulls_less() {
     );
     assert!(vague < sharp / 5.0, "{vague} vs {sharp}");
 }
+
+/// Issue 27, finding 1: a fix's heading is gated like its position (it used to be taken
+/// whatever it said), and a fix claiming σ = 0 is not a fix (it used to get the tightest
+/// gate and the strongest pull).
+#[test]
+fn a_fix_turned_away_or_claiming_no_error_is_refused() {
+    let mut odo = Odometry::new();
+    odo.update([0, 0], 0, &CFG);
+    odo.apply_fix(&fix(Pose::new(0.0, 0.0, 0.0), 0), 0, &CFG);
+    odo.update([0, 0], 100, &CFG);
+    let turned = fix(Pose::new(0.0, 0.0, 0.6), 100);
+    assert_eq!(odo.apply_fix(&turned, 100, &CFG), FixOutcome::Rejected);
+    assert_eq!(odo.pose().unwrap().heading, 0.0);
+    let slight = fix(Pose::new(0.0, 0.0, 0.05), 100);
+    assert_eq!(odo.apply_fix(&slight, 100, &CFG), FixOutcome::Applied);
+    let perfect = PoseFixSample {
+        sigma: 0.0,
+        ..fix(Pose::new(0.1, 0.0, 0.0), 100)
+    };
+    assert_eq!(odo.apply_fix(&perfect, 100, &CFG), FixOutcome::Invalid);
+}

@@ -8,5 +8,6 @@ pub mod map;
 pub mod perception;
 pub mod planner;
 pub mod scenario;
+pub mod seal;
 pub mod station;
 pub mod transport;

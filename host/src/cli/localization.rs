@@ -1,25 +1,39 @@
 //! Localization in and out. In: `run --fix-feed ADDR` and `run --nmea ID=SOURCE` read fixes
 //! (one thread per source, lines through a bounded channel) for the station to forward.
-//! Out: `robots --publish-fixes` sends the simulated robots' fixes the same ways, so the
-//! whole path is tested end to end.
+//! Every source seals what it sends with its own key (`base_station::seal`: the line feed
+//! is source `fixes`, robot N's receiver source `nmea-N`); nothing unsealed reaches a
+//! robot. Out: `robots --publish-fixes` sends the simulated robots' fixes the same ways,
+//! sealed, so the whole path is tested end to end.
 
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader, Read};
 use std::net::{SocketAddr, UdpSocket};
 use std::str::FromStr;
 use std::sync::mpsc::{self, Receiver, SyncSender};
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
 use base_station::localization::{self, feed, nmea::NmeaReceiver, Fix, InputCounts, LineError};
 use base_station::planner::PlanPose;
 use base_station::scenario::Scenario;
+use base_station::seal::{Sealer, SourceKey};
 use base_station::station::{BaseStation, NotForwarded};
 use control_core::odometry::PoseFixSample;
 use glam::DVec2;
+use protocol::MasterKey;
+use serde::Serialize;
+
+use super::feed::{AllowNet, Gate, GateCounts, GateTally};
 
 /// Longest input line taken, bytes (an NMEA sentence is at most 82).
 const MAX_LINE: usize = 1024;
+/// The source name of the line feed: its key is `MasterKey::source_bytes("fixes")`.
+pub const FEED_SOURCE: &str = "fixes";
+
+/// The source name of robot `id`'s GNSS receiver.
+pub fn nmea_source(id: u16) -> String {
+    format!("nmea-{id}")
+}
 /// Lines waiting for the main loop; more are dropped (and counted).
 const QUEUE: usize = 1024;
 /// A fix older than this when it arrives is not forwarded, ms.
@@ -103,6 +117,16 @@ struct Input {
     name: String,
     parser: Parser,
     counts: InputCounts,
+    gate: Arc<GateCounts>,
+}
+
+/// What one input delivered and what it dropped, for the run's report.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct InputReport {
+    #[serde(flatten)]
+    pub lines: InputCounts,
+    #[serde(flatten)]
+    pub gate: GateTally,
 }
 
 /// Every localization source of a run, read on their own threads.
@@ -114,11 +138,15 @@ pub struct Localization {
 }
 
 impl Localization {
-    /// Opens the sources; `None` when there are none.
+    /// Opens the sources; `None` when there are none. Their records must be sealed with
+    /// their sources' keys (derived from `master`) and, over UDP, come from `allow`'s
+    /// addresses (any, when empty).
     pub fn open(
         feed: Option<SocketAddr>,
         nmea: &[NmeaArg],
         scenario: &Scenario,
+        master: &MasterKey,
+        allow: Arc<[AllowNet]>,
     ) -> anyhow::Result<Option<Self>> {
         if feed.is_none() && nmea.is_empty() {
             return Ok(None);
@@ -127,27 +155,49 @@ impl Localization {
         let dropped = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
         let mut inputs = Vec::new();
         if let Some(addr) = feed {
+            let name = format!("feed udp:{addr}");
+            let gate = Gate::new(&name, FEED_SOURCE, master, allow.clone());
+            let counts = gate.counts();
             spawn(
                 inputs.len(),
                 &Source::Udp(addr),
+                gate,
                 tx.clone(),
                 dropped.clone(),
             )?;
             inputs.push(Input {
-                name: format!("feed udp:{addr}"),
+                name,
                 parser: Parser::Feed,
                 counts: InputCounts::default(),
+                gate: counts,
             });
         }
         for arg in nmea {
             let Some(origin) = scenario.localization.origin else {
                 bail!("--nmea needs the site's origin on the globe: [localization] origin = {{ lat_deg = …, lon_deg = …, x_axis_bearing_deg = … }} in the site file");
             };
-            spawn(inputs.len(), &arg.source, tx.clone(), dropped.clone())?;
+            if !scenario.robots.iter().any(|r| r.id == arg.robot) {
+                bail!(
+                    "--nmea {}=…: the site has no robot {} (its robots: {})",
+                    arg.robot,
+                    arg.robot,
+                    scenario
+                        .robots
+                        .iter()
+                        .map(|r| r.id.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
+            let name = format!("nmea robot {}", arg.robot);
+            let gate = Gate::new(&name, &nmea_source(arg.robot), master, allow.clone());
+            let counts = gate.counts();
+            spawn(inputs.len(), &arg.source, gate, tx.clone(), dropped.clone())?;
             inputs.push(Input {
-                name: format!("nmea robot {}", arg.robot),
+                name,
                 parser: Parser::Nmea(NmeaReceiver::new(arg.robot, origin)),
                 counts: InputCounts::default(),
+                gate: counts,
             });
         }
         Ok(Some(Self {
@@ -200,6 +250,7 @@ impl Localization {
                     input.counts.rate_limited += 1
                 }
                 Err(NotForwarded::OutOfRange) => input.counts.malformed += 1,
+                Err(NotForwarded::Outlier) => input.counts.outliers += 1,
             }
         }
     }
@@ -208,15 +259,21 @@ impl Localization {
     pub fn log(&self) {
         for input in &self.inputs {
             let c = &input.counts;
+            let g = input.gate.tally();
             tracing::info!(
                 source = %input.name,
-                forwarded = c.fixes,
+                not_allowed = g.not_allowed,
+                unsealed = g.unsealed,
+                bad_seal = g.bad_seal,
+                replayed = g.replayed,
+                taken = c.fixes,
                 malformed = c.malformed,
                 no_solution = c.no_solution,
                 no_heading = c.no_heading,
                 unknown_robot = c.unknown_robot,
                 out_of_time = c.out_of_time,
                 held_back = c.rate_limited,
+                outliers = c.outliers,
                 "localization"
             );
         }
@@ -230,25 +287,33 @@ impl Localization {
     }
 
     /// Counts per source, for the summary at the end of a run.
-    pub fn counts(&self) -> BTreeMap<String, InputCounts> {
+    pub fn counts(&self) -> BTreeMap<String, InputReport> {
         self.inputs
             .iter()
-            .map(|i| (i.name.clone(), i.counts))
+            .map(|i| {
+                let report = InputReport {
+                    lines: i.counts,
+                    gate: i.gate.tally(),
+                };
+                (i.name.clone(), report)
+            })
             .collect()
     }
 }
 
-/// Reads `source` on its own thread, line by line, into `tx`.
+/// Reads `source` on its own thread, record by record through `gate`, line by line into
+/// `tx`.
 fn spawn(
     index: usize,
     source: &Source,
+    mut gate: Gate,
     tx: SyncSender<Line>,
     dropped: std::sync::Arc<std::sync::atomic::AtomicU64>,
 ) -> anyhow::Result<()> {
-    let send = move |text: Result<String, LineError>| {
+    let mut send = move |bytes: &[u8]| {
         let line = Line {
             source: index,
-            text,
+            text: text_of(bytes),
             unix_ms: super::unix_ms().unwrap_or(0),
         };
         super::feed::offer(&tx, line, &dropped)
@@ -256,13 +321,13 @@ fn spawn(
     match source.clone() {
         Source::Udp(addr) => {
             let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
-            super::feed::read_udp_lines(socket, "localization", move |line| send(text_of(line)))?;
+            super::feed::read_udp_records(socket, "localization", gate, send)?;
         }
         Source::Tcp(addr) => {
             std::thread::spawn(move || loop {
                 match std::net::TcpStream::connect(&addr) {
                     Ok(stream) => {
-                        if !read_lines(stream, &send) {
+                        if !super::feed::read_stream_records(stream, &mut gate, &mut send) {
                             return;
                         }
                         tracing::warn!(%addr, "localization source closed; reconnecting");
@@ -280,33 +345,12 @@ fn spawn(
                 .open()
                 .with_context(|| format!("cannot open {path}"))?;
             std::thread::spawn(move || {
-                read_lines(port, &send);
+                super::feed::read_stream_records(port, &mut gate, &mut send);
                 tracing::warn!(%path, "localization source closed");
             });
         }
     }
     Ok(())
-}
-
-/// Lines from a byte stream until it ends; `false` when the receiver is gone.
-fn read_lines(stream: impl Read, send: &impl Fn(Result<String, LineError>) -> bool) -> bool {
-    let mut reader = BufReader::new(stream);
-    let mut line = Vec::new();
-    loop {
-        line.clear();
-        // Bounded: a stream without newlines cannot grow the buffer past MAX_LINE.
-        match (&mut reader)
-            .take(MAX_LINE as u64 + 1)
-            .read_until(b'\n', &mut line)
-        {
-            Ok(0) | Err(_) => return true,
-            Ok(_) => {
-                if !send(text_of(&line)) {
-                    return false;
-                }
-            }
-        }
-    }
 }
 
 fn text_of(bytes: &[u8]) -> Result<String, LineError> {
@@ -350,19 +394,26 @@ impl FromStr for PublishArg {
     }
 }
 
-/// Sends simulated fixes as a site's localization system would.
+/// Sends simulated fixes as a site's localization system would, sealed with each source's
+/// key.
 pub struct FixPublisher {
     socket: Option<UdpSocket>,
     feeds: Vec<SocketAddr>,
-    nmea: BTreeMap<u16, SocketAddr>,
+    feed_seal: Sealer,
+    nmea: BTreeMap<u16, (SocketAddr, Sealer)>,
     origin: Option<localization::SiteOrigin>,
 }
 
 impl FixPublisher {
-    pub fn open(args: &[PublishArg], scenario: &Scenario) -> anyhow::Result<Self> {
+    pub fn open(
+        args: &[PublishArg],
+        scenario: &Scenario,
+        master: &MasterKey,
+    ) -> anyhow::Result<Self> {
         let mut publisher = Self {
             socket: None,
             feeds: Vec::new(),
+            feed_seal: Sealer::new(SourceKey::derive(master, FEED_SOURCE)),
             nmea: BTreeMap::new(),
             origin: scenario.localization.origin,
         };
@@ -373,7 +424,8 @@ impl FixPublisher {
                     if publisher.origin.is_none() {
                         bail!("publishing NMEA needs the site's origin: [localization] origin in the scenario");
                     }
-                    publisher.nmea.insert(*robot, *to);
+                    let key = SourceKey::derive(master, &nmea_source(*robot));
+                    publisher.nmea.insert(*robot, (*to, Sealer::new(key)));
                 }
             }
         }
@@ -385,10 +437,11 @@ impl FixPublisher {
 
     /// Sends `fixes` (stamped with the world's clock, ms, which started at
     /// `epoch_unix_ms`). A datagram that cannot go is the source's loss, not an error.
-    pub fn publish(&self, fixes: &[(u16, PoseFixSample)], epoch_unix_ms: u64) {
+    pub fn publish(&mut self, fixes: &[(u16, PoseFixSample)], epoch_unix_ms: u64) {
         let Some(socket) = &self.socket else {
             return;
         };
+        let clock_us = super::unix_ms().unwrap_or(0) * 1000;
         let mut feed = String::new();
         for (robot, sample) in fixes {
             let fix = Fix {
@@ -399,15 +452,16 @@ impl FixPublisher {
                 sigma: sample.sigma as f64,
             };
             feed.push_str(&feed::format(&fix));
-            if let (Some(to), Some(origin)) = (self.nmea.get(robot), &self.origin) {
+            if let (Some((to, sealer)), Some(origin)) = (self.nmea.get_mut(robot), &self.origin) {
                 // Heading first: a receiver's position goes with the heading before it.
                 let lines = localization::nmea::sentences(&fix, origin);
-                let _ = socket.send_to(lines.as_bytes(), to);
+                let _ = socket.send_to(sealer.seal(&lines, clock_us).as_bytes(), *to);
             }
         }
-        if !feed.is_empty() {
+        if !feed.is_empty() && !self.feeds.is_empty() {
+            let record = self.feed_seal.seal(&feed, clock_us);
             for to in &self.feeds {
-                let _ = socket.send_to(feed.as_bytes(), to);
+                let _ = socket.send_to(record.as_bytes(), to);
             }
         }
     }

@@ -4,6 +4,8 @@ pub mod check;
 pub mod console;
 pub mod decode;
 pub mod feed;
+pub mod feed_key;
+pub mod feed_relay;
 pub mod localization;
 pub mod record;
 pub mod robot_config;
@@ -11,6 +13,7 @@ pub mod robots;
 pub mod run;
 pub mod scan;
 pub mod sim;
+pub mod timing;
 
 use std::path::{Path, PathBuf};
 
@@ -127,12 +130,22 @@ impl KeyArgs {
     }
 }
 
+/// The fleet's master key, or the one error every command that needs it gives.
+pub fn require_key(key: &KeyArgs) -> anyhow::Result<MasterKey> {
+    key.load()?.ok_or_else(|| {
+        anyhow::anyhow!(
+            "no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY \
+             (64 hex digits; make one with  (umask 077; openssl rand -hex 32 > fleet.key))"
+        )
+    })
+}
+
 /// Largest key file read: a key is 64 hex digits and a newline.
 const MAX_KEY_FILE: u64 = 1024;
 
 /// Reads a key file as ssh reads a private key: only if nobody but its owner can read it,
 /// and only if it is small enough to be one.
-fn read_key_file(path: &Path) -> anyhow::Result<Zeroizing<String>> {
+pub fn read_key_file(path: &Path) -> anyhow::Result<Zeroizing<String>> {
     use std::os::unix::fs::PermissionsExt;
     let meta = std::fs::metadata(path)
         .with_context(|| format!("cannot read the key file {}", path.display()))?;

@@ -47,9 +47,7 @@ pub fn run(args: RobotConfigArgs) -> anyhow::Result<()> {
     if args.id == u16::MAX {
         bail!("id 65535 is reserved");
     }
-    let Some(master) = args.key.load()? else {
-        bail!("no fleet key: pass --key-file FILE or set SWEEPER_FLEET_KEY");
-    };
+    let master = super::require_key(&args.key)?;
     // The page holds the broadcast key and this robot's own key, never the master key.
     let page = ConfigPage::new(args.id, matches!(args.role, RoleArg::Leader), &master);
     let encoded = Zeroizing::new(page.encode());
@@ -74,7 +72,7 @@ pub fn run(args: RobotConfigArgs) -> anyhow::Result<()> {
 
 /// Writes `bytes` to `path`, readable and writable by the owner only (also when it
 /// already existed).
-fn write_private(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+pub fn write_private(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     let mut file = std::fs::OpenOptions::new()
         .write(true)
         .create(true)

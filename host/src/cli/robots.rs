@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::Args;
 use hil_sim::world::{BaseSide, FixPath, SimOptions, World};
 
@@ -165,25 +165,23 @@ impl Air {
 
 pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     let scenario = super::load_scenario(&args.scenario)?;
-    let Some(key) = args.key.load()? else {
-        bail!("no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY (64 hex digits)");
-    };
+    let key = super::require_key(&args.key)?;
     let name = scenario.name.clone();
     let end_s = args.duration.unwrap_or(scenario.sim.duration_s);
     let step_us = scenario.sim.physics_step_ms as u64 * 1000;
     let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
     options.firmware = args.firmware.into();
     options.base = BaseSide::External;
+    let mut publisher = FixPublisher::open(&args.publish_fixes, &scenario, &key)?;
+    let mut scans = args
+        .publish_scan
+        .map(|to| super::scan::ScanPublisher::open(to, &key))
+        .transpose()?;
     options.key = Some(Arc::new(key));
     if !args.publish_fixes.is_empty() {
         options.fixes = FixPath::Published;
     }
     let settle_s = options.settle_s;
-    let publisher = FixPublisher::open(&args.publish_fixes, &scenario)?;
-    let scans = args
-        .publish_scan
-        .map(super::scan::ScanPublisher::open)
-        .transpose()?;
     let mut world = World::new(scenario, options).context("cannot start the robots")?;
     let mut air = if args.pty {
         Air::open_pty()?
@@ -220,7 +218,7 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
             publisher.publish(&fixes, epoch_unix_ms);
         }
         let scan = world.take_scan();
-        if let Some(scans) = &scans {
+        if let Some(scans) = &mut scans {
             scans.publish(&scan, epoch_unix_ms + world.t_us / 1000);
         }
         let ahead = Duration::from_micros(world.t_us).saturating_sub(wall.elapsed());

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use base_station::station::{BaseStation, StationConfig};
 use base_station::transport::{Serial, Transport, Udp};
 use clap::Args;
@@ -50,6 +50,11 @@ pub struct RunArgs {
     /// datagrams to this local address: what the map does not hold is routed round.
     #[arg(long, value_name = "ADDR")]
     pub scan_feed: Option<SocketAddr>,
+    /// Take localization and scan datagrams only from these addresses (`ADDR` or
+    /// `ADDR/PREFIX`, repeatable; default: any, sealed records only). Bind the feeds to
+    /// the localization network's interface too (docs/operating.md#who-may-speak-on-the-feeds).
+    #[arg(long, value_name = "NET")]
+    pub feed_allow: Vec<super::feed::AllowNet>,
     /// Write what the run did (station events, link and localization counts) here at the
     /// end, as JSON (docs/operating.md#the-run-report).
     #[arg(long, value_name = "FILE.json")]
@@ -72,9 +77,7 @@ pub struct RunArgs {
 
 pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let scenario = super::load_scenario(&args.scenario)?;
-    let Some(key) = args.key.load()? else {
-        bail!("no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY (64 hex digits)");
-    };
+    let key = super::require_key(&args.key)?;
     let transport: Box<dyn Transport> = match (&args.port, args.udp) {
         (Some(port), _) => {
             Box::new(Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?)
@@ -103,8 +106,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         nonce_base,
     );
 
-    let mut localization =
-        super::localization::Localization::open(args.fix_feed, &args.nmea, &scenario)?;
+    let allow: Arc<[super::feed::AllowNet]> = Arc::from(args.feed_allow.clone());
+    let mut localization = super::localization::Localization::open(
+        args.fix_feed,
+        &args.nmea,
+        &scenario,
+        &key,
+        allow.clone(),
+    )?;
     match &localization {
         Some(_) => station.watch_fixes(0),
         None => tracing::warn!(
@@ -114,7 +123,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
 
     let mut scans = args
         .scan_feed
-        .map(super::scan::ScanFeed::open)
+        .map(|addr| super::scan::ScanFeed::open(addr, &key, allow.clone()))
         .transpose()?;
 
     let console = super::console::Console::open(args.console, &scenario)?;
@@ -142,6 +151,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut buf = [0u8; 2048];
     let mut last_report = 0u32;
     let mut arrived_ms = None;
+    let mut timing = super::timing::LoopTiming::default();
     while !stop.load(Ordering::SeqCst) {
         let now_ms = start.elapsed().as_millis() as u32;
         if args.duration.is_some_and(|d| now_ms as f64 / 1000.0 >= d) {
@@ -171,7 +181,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
                 }
             }
         }
+        let tick = next;
         next += period;
+        let began = Instant::now();
         let now_ms = start.elapsed().as_millis() as u32;
         if let Some(l) = &mut localization {
             l.poll(&mut station, start_unix_ms, now_ms);
@@ -194,6 +206,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             r.radio("base", &out, now_ns());
             r.station(&station, now_ms, now_ns());
         }
+        timing.period(began.saturating_duration_since(tick), began.elapsed());
         if now_ms / 1000 != last_report {
             last_report = now_ms / 1000;
             log_link(&station, now_ms, last_report.is_multiple_of(5));
@@ -222,12 +235,13 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         r.radio("base", &out, now_ns());
         r.close()?;
     }
-    let summary = summary(
+    let mut summary = summary(
         &scenario.name,
         &station,
         localization.as_ref(),
         scans.as_ref().map(|s| s.counts()),
     );
+    summary["loop"] = serde_json::to_value(timing.report())?;
     eprintln!("{}", serde_json::to_string(&summary)?);
     if let Some(path) = &args.report {
         std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")

@@ -1,8 +1,9 @@
 //! The leader's scans in and out. In: `run --scan-feed ADDR` reads the scan feed
 //! (`base_station::perception::parse_scan_line`: one scan a line, site frame) from UDP
-//! datagrams on a thread of its own, through a bounded channel, and hands each fresh scan
-//! to the station, which routes round what the map does not hold. Out: `robots
-//! --publish-scan ADDR` sends the simulated leader's scans in the same format.
+//! datagrams sealed by source `scan` (`base_station::seal`), on a thread of its own,
+//! through a bounded channel, and hands each fresh scan to the station, which routes round
+//! what the map does not hold. Out: `robots --publish-scan ADDR` sends the simulated
+//! leader's scans in the same format, sealed.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -11,9 +12,16 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use base_station::perception::parse_scan_line;
+use base_station::seal::{Sealer, SourceKey};
 use base_station::station::BaseStation;
 use glam::DVec2;
+use protocol::MasterKey;
 use serde::Serialize;
+
+use super::feed::{AllowNet, Gate, GateCounts, GateTally};
+
+/// The scan feed's source name: its key is `MasterKey::source_bytes("scan")`.
+pub const SCAN_SOURCE: &str = "scan";
 
 /// A scan older than this when the station takes it is dropped, ms.
 const MAX_AGE_MS: f64 = 1000.0;
@@ -33,22 +41,33 @@ pub struct ScanCounts {
     pub out_of_time: u64,
     /// Scans dropped because the station fell behind.
     pub dropped: u64,
+    /// What the feed's gate refused (address, seal).
+    #[serde(flatten)]
+    pub gate: GateTally,
 }
 
 pub struct ScanFeed {
     lines: Receiver<Result<(f64, Vec<DVec2>), String>>,
     dropped: Arc<AtomicU64>,
+    gate: Arc<GateCounts>,
     counts: ScanCounts,
 }
 
 impl ScanFeed {
-    /// Listens on `addr` (UDP), one thread.
-    pub fn open(addr: SocketAddr) -> anyhow::Result<Self> {
+    /// Listens on `addr` (UDP), one thread, for records sealed by source `scan` (its key
+    /// derived from `master`) from `allow`'s addresses (any, when empty).
+    pub fn open(
+        addr: SocketAddr,
+        master: &MasterKey,
+        allow: Arc<[AllowNet]>,
+    ) -> anyhow::Result<Self> {
         let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
         let (tx, lines) = mpsc::sync_channel(IN_FLIGHT);
         let dropped = Arc::new(AtomicU64::new(0));
         let full = dropped.clone();
-        super::feed::read_udp_lines(socket, "scan feed", move |line| {
+        let gate = Gate::new("scan feed", SCAN_SOURCE, master, allow);
+        let gate_counts = gate.counts();
+        super::feed::read_udp_records(socket, "scan feed", gate, move |line| {
             let parsed = match std::str::from_utf8(line) {
                 Ok(text) => parse_scan_line(text).transpose(),
                 Err(_) => Some(Err("not UTF-8".to_string())),
@@ -58,6 +77,7 @@ impl ScanFeed {
         Ok(Self {
             lines,
             dropped,
+            gate: gate_counts,
             counts: ScanCounts::default(),
         })
     }
@@ -83,6 +103,7 @@ impl ScanFeed {
             }
         }
         self.counts.dropped = self.dropped.load(Ordering::Relaxed);
+        self.counts.gate = self.gate.tally();
     }
 
     pub fn counts(&self) -> ScanCounts {
@@ -90,21 +111,26 @@ impl ScanFeed {
     }
 }
 
-/// Sends scans as the scan feed's lines, one datagram each.
+/// Sends scans as the scan feed's lines, one sealed datagram each.
 pub struct ScanPublisher {
     socket: UdpSocket,
     to: SocketAddr,
+    sealer: Sealer,
 }
 
 impl ScanPublisher {
-    pub fn open(to: SocketAddr) -> anyhow::Result<Self> {
+    pub fn open(to: SocketAddr, master: &MasterKey) -> anyhow::Result<Self> {
         let socket = UdpSocket::bind(if to.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" })
             .context("cannot open a UDP socket for the scans")?;
-        Ok(Self { socket, to })
+        Ok(Self {
+            socket,
+            to,
+            sealer: Sealer::new(SourceKey::derive(master, SCAN_SOURCE)),
+        })
     }
 
     /// One scan taken at `unix_ms`; nothing to send for an empty one.
-    pub fn publish(&self, hits: &[DVec2], unix_ms: u64) {
+    pub fn publish(&mut self, hits: &[DVec2], unix_ms: u64) {
         if hits.is_empty() {
             return;
         }
@@ -114,7 +140,8 @@ impl ScanPublisher {
             let _ = write!(line, ",{:.3},{:.3}", h.x, h.y);
         }
         line.push('\n');
+        let record = self.sealer.seal(&line, unix_ms * 1000);
         // A lost scan is made up by the next, 100 ms later.
-        let _ = self.socket.send_to(line.as_bytes(), self.to);
+        let _ = self.socket.send_to(record.as_bytes(), self.to);
     }
 }

@@ -1,6 +1,8 @@
 //! Shared by the CLI tests.
 #![allow(dead_code)]
 
+pub mod fleet;
+
 use std::path::Path;
 use std::process::{Child, Command};
 

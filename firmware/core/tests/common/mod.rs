@@ -36,7 +36,8 @@ impl Body {
             ],
             pose_fix: fix_at.map(|t| PoseFixSample {
                 pose: self.pose,
-                sigma: 0.0,
+                // As good as a localization gets (σ 0 is refused: no source is perfect).
+                sigma: 0.005,
                 time_ms: t,
             }),
             proximity: [None, None],

@@ -40,8 +40,9 @@ pub fn parse(line: &str) -> Result<Option<Fix>, LineError> {
     if !(0.0..=1e11).contains(&time) {
         return Err(LineError::Malformed(format!("time {time} s")));
     }
-    if sigma < 0.0 {
-        return Err(LineError::Malformed(format!("sigma {sigma} m")));
+    if sigma <= 0.0 {
+        // No localization is perfect: a σ of 0 is not a measurement.
+        return Err(LineError::Malformed(format!("sigma {sigma} m: must be > 0")));
     }
     Ok(Some(Fix {
         robot,
@@ -92,6 +93,7 @@ mod tests {
             ("1,1,NaN,0,0,0.1", "x"),
             ("1,1,0,0,inf,0.1", "heading"),
             ("1,1,0,0,0,-1", "sigma"),
+            ("1,1,0,0,0,0", "must be > 0"),
             ("1,-5,0,0,0,0.1", "time"),
         ] {
             match parse(line) {

@@ -69,8 +69,12 @@ pub struct InputCounts {
     pub unknown_robot: u64,
     /// Fixes too old, or from the future, by the station's clock.
     pub out_of_time: u64,
-    /// Fixes dropped to keep each robot's rate under the limit.
+    /// Fixes not forwarded: a fix that agreed better with the robot took the slot (each
+    /// robot gets at most `forward_hz` a second).
     pub rate_limited: u64,
+    /// Fixes far from where the robot knows it is, held back while fixes it agrees with
+    /// keep coming.
+    pub outliers: u64,
 }
 
 impl InputCounts {

@@ -274,10 +274,14 @@ impl Scenario {
             p.fail("link.baud", "must be > 0");
         }
         let z = &self.localization;
-        p.finite(
+        if p.finite(
             "localization.sigma_m",
             &[z.sigma_m, z.heading_sigma_deg, z.latency_ms],
-        );
+        ) && z.sigma_m < 0.001
+        {
+            // The robots refuse a fix that claims no error at all: no source is perfect.
+            p.fail("localization.sigma_m", "must be at least 0.001 m");
+        }
         p.positive("localization.rate_hz", z.rate_hz);
         p.positive("localization.forward_hz", z.forward_hz);
         if p.positive("localization.lost_after_s", z.lost_after_s)

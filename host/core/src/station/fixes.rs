@@ -2,6 +2,15 @@
 //! robot's fixes (at most `forward_hz` each) and watches their age. A robot without fixes
 //! drives on odometry; after `lost_after` it is reported lost, after `stop_after` the fleet
 //! stops until every robot has fixes again.
+//!
+//! Within each forwarding interval the fix that agrees best with the robot's own estimate
+//! (its odometry, as its telemetry reports it) goes out, not the first to arrive: a source
+//! that floods cannot win the interval by speed. A fix the robot would take for an outlier
+//! is held back while fixes it agrees with keep coming (for [`HOLD_OUTLIERS_MS`] after the
+//! last of them): only a localization that has really moved for that long reaches the
+//! robot, which then re-anchors after its own count of outliers. Only the fixes that go
+//! out count as fixes for the watch: lines that arrive and are never forwarded do not keep
+//! a robot "located".
 
 use std::collections::BTreeMap;
 
@@ -23,12 +32,30 @@ impl FixLimits {
     }
 }
 
+/// Outliers wait this long after the last fix the robot agreed with, ms: as long as the
+/// robot's own odometry holds out against them (control-core's `RELOCALIZE_AFTER`).
+pub const HOLD_OUTLIERS_MS: u32 = 5000;
+
+/// A fix waiting for its robot's next forwarding slot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate<F> {
+    pub fix: F,
+    /// How far it is from what the robot believes (lower is better; see
+    /// [`super::fix_check`]).
+    pub disagreement: f64,
+    /// The robot would take it for an outlier.
+    pub outlier: bool,
+}
+
 #[derive(Debug, Clone, Copy)]
-struct RobotFixes {
-    /// Station clock of the last fix received (or of the watch's start).
+struct RobotFixes<F> {
+    /// Station clock of the last fix forwarded (or of the watch's start).
     last_fix_ms: u32,
     last_forward_ms: Option<u32>,
+    /// Station clock of the last fix the robot agreed with that arrived.
+    last_agreed_ms: Option<u32>,
     lost: bool,
+    waiting: Option<Candidate<F>>,
 }
 
 /// A change the watch saw at a step.
@@ -42,19 +69,34 @@ pub enum FixChange {
     Resume,
 }
 
+/// What became of a fix offered to the watch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Offer {
+    /// It waits for the robot's next slot (it replaced a worse one, if any).
+    Waiting,
+    /// A fix that agrees better with the robot already waits for the slot.
+    Outdone,
+    /// An outlier to the robot while fixes it agrees with still come.
+    HeldOutlier,
+    /// Not a robot of the fleet.
+    Unknown,
+}
+
 #[derive(Debug, Clone)]
-pub struct FixWatch {
+pub struct FixWatch<F> {
     limits: FixLimits,
-    robots: BTreeMap<u16, RobotFixes>,
+    robots: BTreeMap<u16, RobotFixes<F>>,
     halted: bool,
 }
 
-impl FixWatch {
+impl<F: Copy> FixWatch<F> {
     pub fn new(limits: FixLimits, robots: impl IntoIterator<Item = u16>, now_ms: u32) -> Self {
         let state = RobotFixes {
             last_fix_ms: now_ms,
             last_forward_ms: None,
+            last_agreed_ms: None,
             lost: false,
+            waiting: None,
         };
         Self {
             limits,
@@ -67,18 +109,46 @@ impl FixWatch {
         self.halted
     }
 
-    /// A fix of `robot` came from the source: whether it may go out now (`None`: not a
-    /// robot of the fleet).
-    pub fn admit(&mut self, robot: u16, now_ms: u32) -> Option<bool> {
-        let r = self.robots.get_mut(&robot)?;
-        r.last_fix_ms = now_ms;
-        let due = r
-            .last_forward_ms
-            .is_none_or(|t| now_ms.wrapping_sub(t) >= self.limits.forward_interval_ms);
-        if due {
-            r.last_forward_ms = Some(now_ms);
+    /// A fix of `robot` came from the source at `now_ms`: it waits for the robot's next
+    /// slot unless a fix that agrees better with the robot waits already, or it is an
+    /// outlier while agreeing fixes still come.
+    pub fn offer(&mut self, robot: u16, candidate: Candidate<F>, now_ms: u32) -> Offer {
+        let Some(r) = self.robots.get_mut(&robot) else {
+            return Offer::Unknown;
+        };
+        if !candidate.outlier {
+            r.last_agreed_ms = Some(now_ms);
+        } else if r
+            .last_agreed_ms
+            .is_some_and(|t| now_ms.wrapping_sub(t) < HOLD_OUTLIERS_MS)
+        {
+            return Offer::HeldOutlier;
         }
-        Some(due)
+        match &r.waiting {
+            Some(w) if w.disagreement <= candidate.disagreement => Offer::Outdone,
+            _ => {
+                r.waiting = Some(candidate);
+                Offer::Waiting
+            }
+        }
+    }
+
+    /// The fixes whose robots' slots have come, to go out now; each counts as that
+    /// robot's latest fix.
+    pub fn due(&mut self, now_ms: u32) -> Vec<(u16, F)> {
+        let interval = self.limits.forward_interval_ms;
+        let mut out = Vec::new();
+        for (id, r) in &mut self.robots {
+            let slot = r
+                .last_forward_ms
+                .is_none_or(|t| now_ms.wrapping_sub(t) >= interval);
+            if let (true, Some(c)) = (slot, r.waiting.take_if(|_| slot)) {
+                r.last_forward_ms = Some(now_ms);
+                r.last_fix_ms = now_ms;
+                out.push((*id, c.fix));
+            }
+        }
+        out
     }
 
     /// The ages at `now_ms`: who is lost, who is back, and whether the fleet must stop.
@@ -117,16 +187,70 @@ mod tests {
         stop_after_ms: 10_000,
     };
 
+    fn offer(watch: &mut FixWatch<u32>, robot: u16, fix: u32, disagreement: f64) -> Offer {
+        let candidate = Candidate {
+            fix,
+            disagreement,
+            outlier: false,
+        };
+        watch.offer(robot, candidate, fix)
+    }
+
     #[test]
-    fn fixes_are_rate_limited_per_robot() {
+    fn outliers_wait_while_agreeing_fixes_come_then_go_out() {
+        let mut watch = FixWatch::new(LIMITS, [1], 0);
+        let outlier = |fix| Candidate {
+            fix,
+            disagreement: 1e4,
+            outlier: true,
+        };
+        assert_eq!(offer(&mut watch, 1, 0, 0.2), Offer::Waiting);
+        watch.due(0);
+        // A flood of outliers beside the agreeing fixes: none goes out.
+        for t in (200..3000).step_by(200) {
+            assert_eq!(watch.offer(1, outlier(t), t), Offer::HeldOutlier);
+            offer(&mut watch, 1, t, 0.2);
+            assert_eq!(watch.due(t), [(1, t)]);
+        }
+        // The localization moved for good: 5 s after the last agreeing fix, the outliers
+        // go out (the robot re-anchors on them after its own count).
+        assert_eq!(watch.offer(1, outlier(7799), 7799), Offer::HeldOutlier);
+        assert_eq!(watch.offer(1, outlier(7800), 7800), Offer::Waiting);
+        assert_eq!(watch.due(7800), [(1, 7800)]);
+    }
+
+    #[test]
+    fn each_slot_takes_the_fix_that_agrees_best_not_the_first() {
         let mut watch = FixWatch::new(LIMITS, [1, 2], 0);
-        let sent: Vec<bool> = [0, 100, 200, 250, 400]
-            .iter()
-            .map(|t| watch.admit(1, *t).unwrap())
-            .collect();
-        assert_eq!(sent, [true, false, true, false, true]);
-        assert_eq!(watch.admit(2, 250), Some(true));
-        assert_eq!(watch.admit(9, 250), None);
+        assert_eq!(offer(&mut watch, 1, 10, 0.5), Offer::Waiting);
+        assert_eq!(watch.due(0), [(1, 10)]);
+        // A flood of far-off fixes first, the genuine one last: the genuine one goes out.
+        for k in 0..50 {
+            offer(&mut watch, 1, 100 + k, 40.0);
+        }
+        assert_eq!(offer(&mut watch, 1, 20, 0.3), Offer::Waiting);
+        assert_eq!(offer(&mut watch, 1, 21, 45.0), Offer::Outdone);
+        assert_eq!(watch.due(100), [], "not before the slot");
+        assert_eq!(watch.due(200), [(1, 20)]);
+        assert_eq!(watch.due(400), [], "nothing waits");
+        assert_eq!(offer(&mut watch, 9, 1, 0.0), Offer::Unknown);
+    }
+
+    #[test]
+    fn only_forwarded_fixes_keep_a_robot_located() {
+        let mut watch = FixWatch::new(LIMITS, [1], 0);
+        let mut changes = Vec::new();
+        // Fixes keep arriving but none is ever taken out (the station never sends them):
+        // the robot is lost all the same.
+        for t in (0..=3000).step_by(100) {
+            offer(&mut watch, 1, t, 1.0);
+            watch.check(t, &mut changes);
+        }
+        assert_eq!(changes, [FixChange::Lost(1)]);
+        changes.clear();
+        watch.due(3100);
+        watch.check(3100, &mut changes);
+        assert_eq!(changes, [FixChange::Back(1)]);
     }
 
     #[test]
@@ -134,13 +258,15 @@ mod tests {
         let mut watch = FixWatch::new(LIMITS, [1, 2], 0);
         let mut changes = Vec::new();
         for t in (0..=12_000).step_by(100) {
-            watch.admit(2, t);
+            offer(&mut watch, 2, t, 0.0);
+            watch.due(t);
             watch.check(t, &mut changes);
         }
         assert_eq!(changes, [FixChange::Lost(1), FixChange::Halt]);
         assert!(watch.halted());
         changes.clear();
-        watch.admit(1, 12_100);
+        offer(&mut watch, 1, 0, 0.0);
+        watch.due(12_100);
         watch.check(12_100, &mut changes);
         assert_eq!(changes, [FixChange::Back(1), FixChange::Resume]);
     }

@@ -5,6 +5,7 @@
 
 mod detour;
 mod events;
+mod fix_check;
 mod fixes;
 mod smoothing;
 
@@ -21,7 +22,8 @@ use protocol::{units, Address, FrameDecoder, MasterKey, Reject, RejectCounts, MA
 use detour::Detours;
 pub use events::StationEvent;
 use events::REPORTED_FAULTS;
-use fixes::FixWatch;
+use fix_check::Belief;
+use fixes::{Candidate, FixWatch, Offer};
 pub use fixes::{FixChange, FixLimits};
 pub use smoothing::TurnRateSmoother;
 
@@ -178,12 +180,23 @@ const RESUME_REPEATS: u8 = 5;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NotForwarded {
     UnknownRobot,
-    /// Sooner after the last one than `[localization] forward_hz` allows.
+    /// A fix that agrees better with the robot waits for the same slot (at most
+    /// `[localization] forward_hz` fixes a second go out).
     RateLimited,
     /// The robot has no link yet (it would reject the frame).
     NotLinked,
-    /// A pose or σ the wire cannot carry.
+    /// A pose the wire cannot carry, or a σ that is not a localization's (0, over 65 m).
     OutOfRange,
+    /// Far from where the robot knows it is, while fixes that agree with it keep coming:
+    /// held back ([`fixes::HOLD_OUTLIERS_MS`]).
+    Outlier,
+}
+
+/// A fix on its way to its robot: the message, and the station time it was valid at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct OutgoingFix {
+    fix: PoseFix,
+    valid_at_ms: u32,
 }
 
 /// The leader as the station estimates it now.
@@ -225,7 +238,7 @@ pub struct BaseStation {
     /// A robot fault stopped the mission: Stop to all, no more commands.
     halted: bool,
     /// Forwarding fixes from a localization source, and watching their age.
-    fix_watch: Option<FixWatch>,
+    fix_watch: Option<FixWatch<OutgoingFix>>,
     /// The operator's Stop or emergency stop, held (and repeated every period) until Resume.
     operator_hold: Option<OperatorCommand>,
     /// Resumes still to send.
@@ -344,8 +357,9 @@ impl BaseStation {
     }
 
     /// A fix of `robot` from the localization source, valid at `valid_at_ms` (station
-    /// clock): sent to the robot as an authenticated `PoseFix` unless it came too soon
-    /// after the last one. `Err` when nothing was sent, and why.
+    /// clock): it goes to the robot as an authenticated `PoseFix` at the robot's next
+    /// forwarding slot ([`BaseStation::step`]) unless a fix that agrees better with the
+    /// robot comes for the same slot. `Err` when it will not go, and why.
     pub fn forward_fix(
         &mut self,
         robot: u16,
@@ -358,31 +372,68 @@ impl BaseStation {
         let watch = self
             .fix_watch
             .get_or_insert_with(|| FixWatch::new(self.cfg.fixes, robots, now_ms));
-        match watch.admit(robot, now_ms) {
-            None => return Err(NotForwarded::UnknownRobot),
-            Some(false) => return Err(NotForwarded::RateLimited),
-            Some(true) => {}
-        }
-        let to = Address::Robot(robot);
-        if !self.link.peer(to).is_some_and(|p| p.is_linked()) {
+        let Some(status) = self.robots.get(&robot) else {
+            return Err(NotForwarded::UnknownRobot);
+        };
+        if !self
+            .link
+            .peer(Address::Robot(robot))
+            .is_some_and(|p| p.is_linked())
+        {
             return Err(NotForwarded::NotLinked);
         }
-        let fix = WirePose::from_si(
+        let sigma_mm = units::to_mm_u16(sigma as f32).map_err(|_| NotForwarded::OutOfRange)?;
+        let pose_on_wire = WirePose::from_si(
             pose.position.x as f32,
             pose.position.y as f32,
             pose.heading as f32,
         )
-        .and_then(|pose| {
-            Ok(PoseFix {
-                pose,
-                sigma_mm: units::to_mm_u16(sigma as f32)?,
-            })
-        })
         .map_err(|_| NotForwarded::OutOfRange)?;
-        // The frame's stamp is when the pose was valid: the robot matches it against its
-        // odometry history of that instant.
-        self.send(to, valid_at_ms, &Message::PoseFix(fix));
-        Ok(())
+        if sigma <= 0.0 || sigma_mm == 0 {
+            return Err(NotForwarded::OutOfRange);
+        }
+        let (disagreement, outlier) = status.telemetry.map_or((0.0, false), |telemetry| {
+            Belief {
+                telemetry,
+                at_ms: status.pose_at_ms,
+                track_width: self.cfg.track_width,
+            }
+            .judge(pose.position, pose.heading, sigma, valid_at_ms)
+        });
+        let fix = OutgoingFix {
+            fix: PoseFix {
+                pose: pose_on_wire,
+                sigma_mm,
+            },
+            valid_at_ms,
+        };
+        let candidate = Candidate {
+            fix,
+            disagreement,
+            outlier,
+        };
+        match watch.offer(robot, candidate, now_ms) {
+            Offer::Waiting => Ok(()),
+            Offer::Outdone => Err(NotForwarded::RateLimited),
+            Offer::HeldOutlier => Err(NotForwarded::Outlier),
+            Offer::Unknown => Err(NotForwarded::UnknownRobot),
+        }
+    }
+
+    /// The fixes whose robots' slots have come, sent.
+    fn send_due_fixes(&mut self, now_ms: u32) {
+        let Some(watch) = &mut self.fix_watch else {
+            return;
+        };
+        for (robot, out) in watch.due(now_ms) {
+            // The frame's stamp is when the pose was valid: the robot matches it against
+            // its odometry history of that instant.
+            self.send(
+                Address::Robot(robot),
+                out.valid_at_ms,
+                &Message::PoseFix(out.fix),
+            );
+        }
     }
 
     /// One scan of the leader's range scanner: hit points in the site frame. Hits the map
@@ -603,6 +654,7 @@ impl BaseStation {
             self.last_slots_ms = Some(now_ms);
         }
 
+        self.send_due_fixes(now_ms);
         self.check_fixes(now_ms);
         if let Some(hold) = self.operator_hold {
             // Every period, not once: a robot that missed it (a lost frame) gets the next.
