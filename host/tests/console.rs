@@ -131,24 +131,13 @@ fn speeds(path: &Path) -> Vec<(f64, u64, f64)> {
         .collect()
 }
 
-#[test]
-fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
-    let Some(chromium) = browser() else {
-        assert!(
-            std::env::var_os("CONSOLE_BROWSER_REQUIRED").is_none(),
-            "CONSOLE_BROWSER_REQUIRED is set but no chromium was found"
-        );
-        eprintln!("SKIPPED: no chromium on this machine (apt-get install chromium)");
-        return;
-    };
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("console-test");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+/// A `sim --realtime --console` run of the 24 s passage in `dir`: the process, the
+/// console's URL (with its pairing code), the report's and the trace's paths.
+fn start_sim(dir: &Path) -> (Killed, String, PathBuf, PathBuf) {
     let (report, trace) = (dir.join("report.json"), dir.join("trace.csv"));
-
     let mut sim = Command::new(BIN)
         .arg("sim")
-        .arg(scenario(&dir))
+        .arg(scenario(dir))
         .args(["--realtime", "--console", "127.0.0.1:0", "--report"])
         .arg(&report)
         .arg("--trace")
@@ -170,10 +159,22 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
         .strip_prefix("console: ")
         .expect("the console's address")
         .to_string();
-    let sim = Killed(sim);
+    (Killed(sim), url, report, trace)
+}
 
+/// Headless Chromium with a fresh profile in `dir`, and its first page; `None` (the test
+/// skips) without a browser, unless `CONSOLE_BROWSER_REQUIRED` is set.
+fn open_browser(dir: &Path) -> Option<(Killed, Page)> {
+    let Some(chromium) = browser() else {
+        assert!(
+            std::env::var_os("CONSOLE_BROWSER_REQUIRED").is_none(),
+            "CONSOLE_BROWSER_REQUIRED is set but no chromium was found"
+        );
+        eprintln!("SKIPPED: no chromium on this machine (apt-get install chromium)");
+        return None;
+    };
     let profile = dir.join("chromium-profile");
-    let _browser = Killed(
+    let browser = Killed(
         Command::new(chromium)
             .args([
                 "--headless",
@@ -182,6 +183,9 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
                 // Containers often have a small /dev/shm.
                 "--disable-dev-shm-usage",
                 "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
             ])
             .args(["--window-size=1300,800", "--remote-debugging-port=0"])
             .arg(format!("--user-data-dir={}", profile.display()))
@@ -224,6 +228,44 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
     let (socket, _) = tungstenite::connect(ws).unwrap();
     let mut page = Page { socket, next: 0 };
     page.call("Page.enable", json!({}));
+    Some((browser, page))
+}
+
+/// A fresh scratch directory for test `name`.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Waits for the run to end; its report.
+fn finished(mut sim: Killed, report: &Path) -> Value {
+    let start = Instant::now();
+    while sim.0.try_wait().unwrap().is_none() {
+        assert!(start.elapsed() < Duration::from_secs(60), "sim did not end");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap()
+}
+
+/// The first time (simulated s) of event `name` in a report, if any.
+fn event_at(r: &Value, name: &str) -> Option<f64> {
+    r["station_events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["event"] == name)
+        .and_then(|e| e["at_s"].as_f64())
+}
+
+#[test]
+fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
+    let dir = scratch("console-test");
+    let Some((_browser, mut page)) = open_browser(&dir) else {
+        return;
+    };
+    let (sim, url, report, trace) = start_sim(&dir);
     page.call("Page.navigate", json!({ "url": url }));
 
     // The page shows the fleet: three robots in the table, the map drawn with them (the
@@ -259,21 +301,9 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
     );
     page.click("resume");
 
-    let mut sim = sim;
-    let start = Instant::now();
-    while sim.0.try_wait().unwrap().is_none() {
-        assert!(start.elapsed() < Duration::from_secs(60), "sim did not end");
-        std::thread::sleep(Duration::from_millis(200));
-    }
-    let r: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let r = finished(sim, &report);
     let at = |name: &str| {
-        r["station_events"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|e| e["event"] == name)
-            .and_then(|e| e["at_s"].as_f64())
-            .unwrap_or_else(|| panic!("no {name} in {}", r["station_events"]))
+        event_at(&r, name).unwrap_or_else(|| panic!("no {name} in {}", r["station_events"]))
     };
     let (stopped, resumed) = (at("operator_emergency_stop"), at("operator_resume"));
     println!("emergency stop at {stopped:.1} s, resume at {resumed:.1} s (simulated)");
@@ -308,4 +338,209 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
         leader_after.fold(0.0, f64::max) > 0.2,
         "the leader did not go on after Resume"
     );
+}
+
+/// `http://HOST:PORT` and the pairing code of a console URL.
+fn origin_and_code(url: &str) -> (String, String) {
+    let (origin, code) = url
+        .split_once("/#pair=")
+        .expect("a URL with its pairing code");
+    (origin.to_string(), code.to_string())
+}
+
+/// One raw HTTP/1.1 request to `origin` (`http://HOST:PORT`): the status and the body.
+fn http(origin: &str, request: &str) -> (u16, String) {
+    let addr = origin.strip_prefix("http://").unwrap();
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut bytes = Vec::new();
+    let _ = s.read_to_end(&mut bytes);
+    let text = String::from_utf8_lossy(&bytes).to_string();
+    let status = text
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let body = text.split_once("\r\n\r\n").map_or("", |x| x.1).to_string();
+    (status, body)
+}
+
+/// A request to the console as `host` names it, with `headers` and a body.
+fn request(method: &str, path: &str, host: &str, headers: &[&str], body: &str) -> String {
+    let mut r = format!("{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n");
+    for h in headers {
+        r.push_str(h);
+        r.push_str("\r\n");
+    }
+    format!("{r}Content-Length: {}\r\n\r\n{body}", body.len())
+}
+
+/// Issue 27, findings 2 and 6: on the loopback the console took any request: no pairing,
+/// no `Host`, `Origin` or `Content-Type` check. Now a request must name the console by its
+/// own address (a rebound `evil.example` is refused), carry the pairing code or a paired
+/// session, and, to change anything, come from the console's own origin as JSON; wrong
+/// pairing codes run out. What passes all that still drives the fleet.
+#[test]
+fn requests_from_other_names_origins_or_unpaired_are_refused() {
+    let dir = scratch("console-guard");
+    let (sim, url, report, _) = start_sim(&dir);
+    let (origin, code) = origin_and_code(&url);
+    let host = origin.strip_prefix("http://").unwrap().to_string();
+    let token = format!("X-Console-Token: {code}");
+    let json_type = "Content-Type: application/json";
+    let stop = r#"{"command":"emergency_stop"}"#;
+    let cases = [
+        (
+            "unpaired",
+            request("GET", "/api/state", &host, &[], ""),
+            401,
+        ),
+        (
+            "rebound name",
+            request("GET", "/api/state", "evil.example:80", &[&token], ""),
+            421,
+        ),
+        (
+            "rebound name with the console's port",
+            request(
+                "POST",
+                "/api/command",
+                &host.replace("127.0.0.1", "evil.example"),
+                &[&token, json_type],
+                stop,
+            ),
+            421,
+        ),
+        (
+            "a form's content type",
+            request(
+                "POST",
+                "/api/command",
+                &host,
+                &[&token, "Content-Type: text/plain"],
+                stop,
+            ),
+            415,
+        ),
+        (
+            "another origin",
+            request(
+                "POST",
+                "/api/command",
+                &host,
+                &[&token, json_type, "Origin: http://127.0.0.1:9"],
+                stop,
+            ),
+            403,
+        ),
+        (
+            "a forged session",
+            request(
+                "GET",
+                "/api/state",
+                &host,
+                &["Cookie: sweeper_console=00000000000000000000000000000000"],
+                "",
+            ),
+            401,
+        ),
+    ];
+    for (what, req, want) in &cases {
+        let (status, body) = http(&origin, req);
+        println!("{what}: {status} {body}");
+        assert_eq!(status, *want, "{what}: {body}");
+    }
+    let wrong = request(
+        "POST",
+        "/api/pair",
+        &host,
+        &[json_type],
+        r#"{"code":"zzzzz-zzzzz"}"#,
+    );
+    let tries: Vec<u16> = (0..6).map(|_| http(&origin, &wrong).0).collect();
+    assert_eq!(tries, [401, 401, 401, 401, 401, 429]);
+    let (status, _) = http(&origin, &request("GET", "/api/state", &host, &[&token], ""));
+    assert_eq!(status, 200, "the operator's script with the code");
+    let (status, body) = http(
+        &origin,
+        &request("POST", "/api/command", &host, &[&token, json_type], stop),
+    );
+    assert_eq!(status, 200, "{body}");
+    let r = finished(sim, &report);
+    let events: Vec<&str> = r["station_events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|e| e["event"].as_str())
+        .filter(|e| e.starts_with("operator_"))
+        .collect();
+    assert_eq!(
+        events,
+        ["operator_emergency_stop"],
+        "only the genuine command"
+    );
+}
+
+/// Issue 27, finding 2 (high): in Chromium, a page of another origin posted `resume` after
+/// the operator's emergency stop and the robots drove again. Here the operator pairs and
+/// stops the fleet from the console; the same browser then opens a page of another
+/// origin (the loopback, another port: the same *site*, so the session cookie goes with
+/// its requests) that tries a no-cors fetch, a JSON fetch and a text/plain form post of
+/// `resume`. None gets through: the robots stay stopped to the end of the run.
+#[test]
+fn a_page_of_another_origin_cannot_resume_the_fleet() {
+    let dir = scratch("console-csrf");
+    let Some((_browser, mut page)) = open_browser(&dir) else {
+        return;
+    };
+    let (sim, url, report, trace) = start_sim(&dir);
+    let (origin, _) = origin_and_code(&url);
+    page.call("Page.navigate", json!({ "url": url }));
+    std::thread::sleep(Duration::from_secs(5));
+    page.click("estop");
+    page.click("confirm");
+    std::thread::sleep(Duration::from_secs(1));
+
+    let attacker = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let evil = format!("http://{}/", attacker.local_addr().unwrap());
+    let target = format!("{origin}/api/command");
+    let html = format!(
+        r#"<!doctype html><html><body>
+<form id="f" method="POST" action="{target}" enctype="text/plain">
+<input name='{{"command":"resume","x":"' value='"}}'></form>
+<script>
+const body = JSON.stringify({{ command: "resume" }});
+fetch("{target}", {{ method: "POST", mode: "no-cors", credentials: "include", body }});
+fetch("{target}", {{ method: "POST", credentials: "include",
+  headers: {{ "Content-Type": "application/json" }}, body }}).catch(() => {{}});
+setTimeout(() => document.getElementById("f").submit(), 1000);
+</script></body></html>"#
+    );
+    std::thread::spawn(move || {
+        for stream in attacker.incoming().flatten() {
+            let mut stream = stream;
+            let mut buf = [0u8; 4096];
+            let _ = stream.read(&mut buf);
+            let _ = write!(
+                stream,
+                "HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{html}",
+                html.len()
+            );
+        }
+    });
+    page.call("Page.navigate", json!({ "url": evil }));
+    std::thread::sleep(Duration::from_secs(4));
+
+    let r = finished(sim, &report);
+    let stopped = event_at(&r, "operator_emergency_stop").expect("the operator's stop");
+    assert_eq!(
+        event_at(&r, "operator_resume"),
+        None,
+        "a page of another origin resumed the fleet: {}",
+        r["station_events"]
+    );
+    for (t, id, v) in speeds(&trace).into_iter().filter(|s| s.0 > stopped + 1.0) {
+        assert!(v.abs() < 0.01, "robot {id} at {v:.3} m/s, {t:.1} s");
+    }
 }

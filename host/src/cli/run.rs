@@ -60,8 +60,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<std::path::PathBuf>,
     /// Serve the operator's console on ADDR [default: 127.0.0.1:8080]: the live map and
-    /// Stop / Emergency stop / Resume. Any address but the loopback needs the token printed
-    /// at start (docs/operating.md#the-console).
+    /// Stop / Emergency stop / Resume. Open the URL it prints (it carries the pairing code),
+    /// or enter the printed pairing code (docs/operating.md#7-stopping-and-the-console).
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
     pub console: Option<SocketAddr>,
     /// Serve the run live over the Foxglove WebSocket protocol on ADDR [default:
@@ -191,7 +191,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         if let Some(feed) = &mut scans {
             feed.poll(&mut station, start_unix_ms + now_ms as u64);
         }
-        if let Some(console) = &console {
+        if let Some(console) = console.as_ref().filter(|c| c.alive()) {
             for command in console.commands() {
                 station.operator(command, now_ms);
             }
@@ -242,6 +242,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         scans.as_ref().map(|s| s.counts()),
     );
     summary["loop"] = serde_json::to_value(timing.report())?;
+    if let Some(console) = &console {
+        summary["console"] = json!({ "alive": console.alive(), "urls": console.urls });
+    }
     eprintln!("{}", serde_json::to_string(&summary)?);
     if let Some(path) = &args.report {
         std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")

@@ -133,7 +133,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
             bar.set_position(permille);
             bar.set_message(format!("{t:.0} s"));
         }
-        if let Some(console) = &console {
+        if let Some(console) = console.as_ref().filter(|c| c.alive()) {
             let now_ms = world.base_ms();
             for command in console.commands() {
                 world.station.operator(command, now_ms);

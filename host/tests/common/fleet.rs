@@ -83,7 +83,7 @@ impl Site {
 }
 
 /// A child process killed when dropped (a failing test leaves nothing running).
-pub struct Process(pub Child);
+pub struct Process(pub Child, Option<std::sync::mpsc::Receiver<String>>);
 
 impl Drop for Process {
     fn drop(&mut self) {
@@ -104,7 +104,7 @@ impl Process {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        Self(child)
+        Self(child, None)
     }
 
     /// `robots`' first line: how to reach it (`udp ADDR` or `pty PATH`).
@@ -119,6 +119,28 @@ impl Process {
             .to_string()
     }
 
+    /// The console's URL `run --console` prints first on standard error (the rest of
+    /// standard error is kept for [`Process::finish`]).
+    pub fn console_url(&mut self) -> String {
+        let mut reader = BufReader::new(self.0.stderr.take().unwrap());
+        let mut line = String::new();
+        while !line.starts_with("console: ") {
+            line.clear();
+            assert!(reader.read_line(&mut line).unwrap() > 0, "no console URL");
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut rest = String::new();
+            let _ = std::io::Read::read_to_string(&mut reader, &mut rest);
+            let _ = tx.send(rest);
+        });
+        self.1 = Some(rx);
+        line.trim()
+            .strip_prefix("console: ")
+            .unwrap_or_else(|| panic!("no console URL: {line}"))
+            .to_string()
+    }
+
     /// Waits for the process to end by itself; its stderr.
     pub fn finish(mut self, limit: Duration) -> String {
         let start = Instant::now();
@@ -126,8 +148,14 @@ impl Process {
             assert!(start.elapsed() < limit, "still running after {limit:?}");
             std::thread::sleep(Duration::from_millis(100));
         }
-        let mut err = String::new();
-        std::io::Read::read_to_string(self.0.stderr.as_mut().unwrap(), &mut err).unwrap();
+        let err = match self.1.take() {
+            Some(rest) => rest.recv().unwrap_or_default(),
+            None => {
+                let mut err = String::new();
+                std::io::Read::read_to_string(self.0.stderr.as_mut().unwrap(), &mut err).unwrap();
+                err
+            }
+        };
         assert!(self.0.wait().unwrap().success(), "{err}");
         err
     }

@@ -42,7 +42,9 @@ pub fn parse(line: &str) -> Result<Option<Fix>, LineError> {
     }
     if sigma <= 0.0 {
         // No localization is perfect: a σ of 0 is not a measurement.
-        return Err(LineError::Malformed(format!("sigma {sigma} m: must be > 0")));
+        return Err(LineError::Malformed(format!(
+            "sigma {sigma} m: must be > 0"
+        )));
     }
     Ok(Some(Fix {
         robot,

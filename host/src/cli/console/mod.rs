@@ -3,55 +3,121 @@
 //! robot's mode and link, the station's events, and Stop / Emergency stop / Resume, which
 //! the station sends to the robots over the authenticated radio.
 //!
-//! The HTTP server (`tiny_http`) runs on its own thread; the station's loop publishes a
-//! snapshot each period and takes the commands between periods, so the station itself is
-//! never touched from another thread. A console drives robots: on any address but the
-//! loopback, every request must carry the token printed at start (`?token=` or the
-//! `X-Console-Token` header).
+//! [`server`]: the HTTP server, on a thread and runtime of its own, every resource a
+//! client can make it hold bounded; the station's loop publishes a snapshot each period
+//! and takes the commands between periods, so the station itself is never touched from
+//! another thread. [`guard`]: who may use it (the console's own names only, a pairing code
+//! or the session cookie it gives, requests that change something from the console's own
+//! origin as JSON), on the loopback as on the network.
 
-use std::net::SocketAddr;
-use std::sync::mpsc::{self, Receiver, Sender};
+mod guard;
+mod server;
+
+use std::net::{IpAddr, SocketAddr};
+use std::sync::mpsc::{self, Receiver};
 use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
 
 use anyhow::Context;
 use base_station::station::{BaseStation, OperatorCommand};
 use serde_json::{json, Value};
-use tiny_http::{Header, Method, Response, Server};
 
-const PAGE: &str = include_str!("page.html");
 /// Events the page shows, newest last.
 const EVENTS_SHOWN: usize = 30;
 
 pub struct Console {
-    snapshot: Arc<Mutex<String>>,
+    shared: Arc<server::Shared>,
     commands: Receiver<OperatorCommand>,
+    thread: JoinHandle<()>,
+    /// The page with its pairing code, on the first of the console's addresses.
     pub url: String,
+    /// Every address the console can be opened at (the interfaces', bound to all).
+    pub urls: Vec<String>,
+    /// Whether its end was reported already.
+    reported_dead: std::cell::Cell<bool>,
+}
+
+/// The addresses a listener bound to `bound` answers on: `bound`'s own, or every
+/// interface's of its family when it is the unspecified address. Non-loopback first.
+fn reachable_at(bound: SocketAddr) -> Vec<IpAddr> {
+    let ip = bound.ip();
+    if !ip.is_unspecified() {
+        return vec![ip];
+    }
+    let mut addresses: Vec<IpAddr> = nix::ifaddrs::getifaddrs()
+        .map(|ifs| {
+            ifs.filter_map(|i| i.address)
+                .filter_map(|a| {
+                    a.as_sockaddr_in()
+                        .map(|v4| IpAddr::V4(v4.ip()))
+                        .or_else(|| a.as_sockaddr_in6().map(|v6| IpAddr::V6(v6.ip())))
+                })
+                .filter(|a| a.is_ipv4() == ip.is_ipv4())
+                // Link-local v6 addresses need a zone a browser's URL cannot carry.
+                .filter(|a| !matches!(a, IpAddr::V6(v6) if v6.segments()[0] & 0xffc0 == 0xfe80))
+                .collect()
+        })
+        .unwrap_or_default();
+    addresses.sort_by_key(|a| (a.is_loopback(), *a));
+    addresses.dedup();
+    if addresses.is_empty() {
+        addresses.push(if ip.is_ipv4() {
+            IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)
+        } else {
+            IpAddr::V6(std::net::Ipv6Addr::LOCALHOST)
+        });
+    }
+    addresses
+}
+
+fn url_of(ip: IpAddr, port: u16) -> String {
+    match ip {
+        IpAddr::V4(v4) => format!("http://{v4}:{port}/"),
+        IpAddr::V6(v6) => format!("http://[{v6}]:{port}/"),
+    }
 }
 
 impl Console {
     /// Serves the console on `addr` (port 0: any free port), with the site's static
     /// picture (`map`: obstacles and bounds).
     pub fn start(addr: SocketAddr, map: Value) -> anyhow::Result<Self> {
-        let server = Server::http(addr)
-            .map_err(|e| anyhow::anyhow!("cannot serve the console on {addr}: {e}"))?;
-        let bound = server
-            .server_addr()
-            .to_ip()
-            .context("the console is not on an IP address")?;
-        let token = (!addr.ip().is_loopback()).then(new_token).transpose()?;
-        let url = match &token {
-            Some(t) => format!("http://{bound}/?token={t}"),
-            None => format!("http://{bound}/"),
-        };
-        let snapshot = Arc::new(Mutex::new("{}".to_string()));
-        let (tx, commands) = mpsc::channel();
-        let shared = snapshot.clone();
-        let map = map.to_string();
-        std::thread::spawn(move || serve(server, token, &map, &shared, &tx));
+        let listener = std::net::TcpListener::bind(addr)
+            .with_context(|| format!("cannot serve the console on {addr}"))?;
+        let bound = listener.local_addr()?;
+        let addresses = reachable_at(bound);
+        let guard = guard::Guard::new(bound, &addresses)?;
+        let urls: Vec<String> = addresses.iter().map(|a| url_of(*a, bound.port())).collect();
+        let url = format!("{}#pair={}", urls[0], guard.code());
+        let (tx, commands) = mpsc::sync_channel(server::COMMANDS);
+        let shared = Arc::new(server::Shared {
+            guard,
+            snapshot: Mutex::new(Arc::from("{}")),
+            map: Arc::from(map.to_string()),
+            commands: tx,
+        });
+        let serving = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("console".into())
+            .spawn(move || {
+                let runtime = match tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .build()
+                {
+                    Ok(r) => r,
+                    Err(e) => return tracing::error!("console: no runtime: {e}"),
+                };
+                if let Err(e) = runtime.block_on(server::serve(listener, serving)) {
+                    tracing::error!("console: {e}");
+                }
+            })
+            .context("cannot start the console's thread")?;
         Ok(Self {
-            snapshot,
+            shared,
             commands,
+            thread,
             url,
+            urls,
+            reported_dead: std::cell::Cell::new(false),
         })
     }
 
@@ -65,13 +131,19 @@ impl Console {
         };
         let console = Self::start(addr, map_json(scenario))?;
         eprintln!("console: {}", console.url);
+        eprintln!(
+            "console: pairing code {} (open {})",
+            console.shared.guard.code(),
+            console.urls.join(" or ")
+        );
         Ok(Some(console))
     }
 
     /// The fleet as the page shows it now.
     pub fn publish(&self, snapshot: &Value) {
-        if let Ok(mut s) = self.snapshot.lock() {
-            *s = snapshot.to_string();
+        let text: Arc<str> = Arc::from(snapshot.to_string());
+        if let Ok(mut s) = self.shared.snapshot.lock() {
+            *s = text;
         }
     }
 
@@ -79,84 +151,20 @@ impl Console {
     pub fn commands(&self) -> Vec<OperatorCommand> {
         self.commands.try_iter().collect()
     }
-}
 
-fn new_token() -> anyhow::Result<String> {
-    let mut bytes = [0u8; 16];
-    getrandom::fill(&mut bytes).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
-    Ok(hex::encode(bytes))
-}
-
-/// Compares in time independent of where the first difference is.
-fn same(a: &str, b: &str) -> bool {
-    a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |d, (x, y)| d | (x ^ y)) == 0
-}
-
-fn serve(
-    server: Server,
-    token: Option<String>,
-    map: &str,
-    snapshot: &Mutex<String>,
-    commands: &Sender<OperatorCommand>,
-) {
-    let json_type = Header::from_bytes("Content-Type", "application/json").expect("a header");
-    for mut request in server.incoming_requests() {
-        let (path, query) = request
-            .url()
-            .split_once('?')
-            .map_or((request.url().to_string(), String::new()), |(p, q)| {
-                (p.to_string(), q.to_string())
-            });
-        if let Some(token) = &token {
-            let given = query
-                .split('&')
-                .find_map(|kv| kv.strip_prefix("token="))
-                .map(str::to_string)
-                .or_else(|| {
-                    request
-                        .headers()
-                        .iter()
-                        .find(|h| h.field.equiv("X-Console-Token"))
-                        .map(|h| h.value.to_string())
-                });
-            if !given.is_some_and(|g| same(&g, token)) {
-                let _ = request
-                    .respond(Response::from_string("a token is needed").with_status_code(403));
-                continue;
-            }
+    /// Whether the console still serves; the first time it does not, that is logged as
+    /// an error (the run goes on: Ctrl-C still stops the fleet).
+    pub fn alive(&self) -> bool {
+        if !self.thread.is_finished() {
+            return true;
         }
-        let response = match (request.method(), path.as_str()) {
-            (Method::Get, "/") => Response::from_string(PAGE).with_header(
-                Header::from_bytes("Content-Type", "text/html; charset=utf-8").expect("a header"),
-            ),
-            (Method::Get, "/api/map") => {
-                Response::from_string(map.to_string()).with_header(json_type.clone())
-            }
-            (Method::Get, "/api/state") => {
-                let body = snapshot.lock().map(|s| s.clone()).unwrap_or_default();
-                Response::from_string(body).with_header(json_type.clone())
-            }
-            (Method::Post, "/api/command") => {
-                let mut body = String::new();
-                let _ = std::io::Read::read_to_string(
-                    &mut std::io::Read::take(request.as_reader(), 256),
-                    &mut body,
-                );
-                match parse_command(&body) {
-                    Some(c) if commands.send(c).is_ok() => {
-                        Response::from_string(format!("{{\"sent\":\"{}\"}}", c.name()))
-                            .with_header(json_type.clone())
-                    }
-                    Some(_) => Response::from_string("the run has ended").with_status_code(410),
-                    None => Response::from_string(
-                        "expected {\"command\": \"stop\" | \"emergency_stop\" | \"resume\"}",
-                    )
-                    .with_status_code(400),
-                }
-            }
-            _ => Response::from_string("not found").with_status_code(404),
-        };
-        let _ = request.respond(response);
+        if !self.reported_dead.replace(true) {
+            tracing::error!(
+                "the console stopped serving: the operator's page is dead; the run goes on \
+                 (Ctrl-C stops the fleet)"
+            );
+        }
+        false
     }
 }
 
@@ -258,6 +266,7 @@ mod tests {
         ] {
             assert_eq!(parse_command(bad), None, "{bad:?}");
         }
-        assert!(same("abc", "abc") && !same("abc", "abd") && !same("abc", "ab"));
+        assert!(guard::same(b"abc", b"abc") && !guard::same(b"abc", b"abd"));
+        assert!(!guard::same(b"abc", b"ab"));
     }
 }

@@ -1,0 +1,286 @@
+//! The console's HTTP server: hyper on a tokio runtime of its own thread, so that nothing a
+//! client sends can stop or slow the station's loop, which only swaps a snapshot in and
+//! takes commands out of a bounded queue. Everything a client can make it hold is bounded:
+//!
+//! - connections: [`MAX_CONNECTIONS`] in all and [`MAX_PER_ADDRESS`] from one address. A
+//!   new connection over either takes the place of the oldest one that has not shown it is
+//!   paired (a request with the session cookie or the code), so idle or anonymous
+//!   connections cannot lock the operator out, not even from the same address (on the
+//!   loopback every client has the same); each lives at most [`CONNECTION_LIFETIME`] (a
+//!   browser reconnects), an idle one [`HEAD_TIMEOUT`];
+//! - a request's head: [`MAX_HEAD`] bytes and 32 headers, read within [`HEAD_TIMEOUT`];
+//! - a body: [`MAX_BODY`] bytes, read within [`BODY_TIMEOUT`];
+//! - commands waiting for the station: [`COMMANDS`]; more are refused (503).
+
+use std::convert::Infallible;
+use std::net::{IpAddr, SocketAddr};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use base_station::station::OperatorCommand;
+use bytes::Bytes;
+use http_body_util::{BodyExt, Full, Limited};
+use hyper::body::Incoming;
+use hyper::header::{HeaderValue, CONTENT_TYPE, SET_COOKIE};
+use hyper::{Method, Request, Response, StatusCode};
+use hyper_util::rt::{TokioIo, TokioTimer};
+use serde_json::Value;
+use tokio::sync::Notify;
+
+use super::guard::{Guard, Refusal, COOKIE_NAME};
+
+pub const MAX_CONNECTIONS: usize = 64;
+pub const MAX_PER_ADDRESS: usize = 16;
+pub const CONNECTION_LIFETIME: Duration = Duration::from_secs(60);
+pub const MAX_HEAD: usize = 8192;
+pub const HEAD_TIMEOUT: Duration = Duration::from_secs(5);
+pub const MAX_BODY: usize = 1024;
+pub const BODY_TIMEOUT: Duration = Duration::from_secs(5);
+pub const COMMANDS: usize = 16;
+
+const PAGE: &str = include_str!("page.html");
+
+/// What the station's loop and the server share.
+pub struct Shared {
+    pub guard: Guard,
+    /// The fleet as the page shows it now (JSON), swapped whole by the station's loop.
+    pub snapshot: Mutex<Arc<str>>,
+    /// The site's static picture (JSON).
+    pub map: Arc<str>,
+    pub commands: SyncSender<OperatorCommand>,
+}
+
+/// One open connection.
+struct Entry {
+    id: u64,
+    address: IpAddr,
+    /// Set once the connection carried a paired request.
+    paired: Arc<AtomicBool>,
+    close: Arc<Notify>,
+}
+
+/// The open connections, oldest first.
+#[derive(Default)]
+struct Connections {
+    open: Mutex<Vec<Entry>>,
+    next: AtomicU64,
+}
+
+/// One open connection's place: given up when dropped.
+struct Slot {
+    connections: Arc<Connections>,
+    id: u64,
+    paired: Arc<AtomicBool>,
+    close: Arc<Notify>,
+}
+
+impl Connections {
+    /// A place for a connection from `address`, making room if needed by closing the
+    /// oldest unpaired connection (of `address`, when it is `address` that is over its
+    /// share); `None` when every connection in the way is paired.
+    fn open(self: &Arc<Self>, address: IpAddr) -> Option<Slot> {
+        let mut open = self.open.lock().ok()?;
+        let mine = open.iter().filter(|e| e.address == address).count();
+        let full = if mine >= MAX_PER_ADDRESS {
+            Some(Some(address))
+        } else {
+            (open.len() >= MAX_CONNECTIONS).then_some(None)
+        };
+        if let Some(among) = full {
+            let victim = open.iter().position(|e| {
+                !e.paired.load(Ordering::Relaxed) && among.is_none_or(|a| e.address == a)
+            })?;
+            open.remove(victim).close.notify_one();
+        }
+        let id = self.next.fetch_add(1, Ordering::Relaxed);
+        let (paired, close) = (Arc::new(AtomicBool::new(false)), Arc::new(Notify::new()));
+        open.push(Entry {
+            id,
+            address,
+            paired: paired.clone(),
+            close: close.clone(),
+        });
+        Some(Slot {
+            connections: self.clone(),
+            id,
+            paired,
+            close,
+        })
+    }
+}
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        if let Ok(mut open) = self.connections.open.lock() {
+            open.retain(|e| e.id != self.id);
+        }
+    }
+}
+
+/// Serves `listener` until the process ends.
+pub async fn serve(listener: std::net::TcpListener, shared: Arc<Shared>) -> std::io::Result<()> {
+    listener.set_nonblocking(true)?;
+    let listener = tokio::net::TcpListener::from_std(listener)?;
+    let connections: Arc<Connections> = Arc::default();
+    loop {
+        let (stream, peer) = match listener.accept().await {
+            Ok(accepted) => accepted,
+            // Out of file descriptors, a reset before accept: wait and go on.
+            Err(e) => {
+                tracing::debug!("console: accept failed: {e}");
+                tokio::time::sleep(Duration::from_millis(50)).await;
+                continue;
+            }
+        };
+        let Some(slot) = connections.open(peer.ip()) else {
+            continue; // dropped: closes the connection
+        };
+        let shared = shared.clone();
+        tokio::spawn(async move {
+            let _ = stream.set_nodelay(true);
+            let paired = slot.paired.clone();
+            let service = hyper::service::service_fn(move |request| {
+                let (shared, paired) = (shared.clone(), paired.clone());
+                async move { Ok::<_, Infallible>(handle(&shared, peer, &paired, request).await) }
+            });
+            let connection = hyper::server::conn::http1::Builder::new()
+                .timer(TokioTimer::new())
+                .header_read_timeout(HEAD_TIMEOUT)
+                .max_buf_size(MAX_HEAD)
+                .max_headers(32)
+                .serve_connection(TokioIo::new(stream), service);
+            tokio::select! {
+                _ = tokio::time::timeout(CONNECTION_LIFETIME, connection) => {}
+                _ = slot.close.notified() => {}
+            }
+        });
+    }
+}
+
+fn respond(status: u16, content_type: &str, body: impl Into<Bytes>) -> Response<Full<Bytes>> {
+    let mut r = Response::new(Full::new(body.into()));
+    *r.status_mut() = StatusCode::from_u16(status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+    let h = r.headers_mut();
+    let set = |h: &mut hyper::HeaderMap, k: &'static str, v: &'static str| {
+        h.insert(k, HeaderValue::from_static(v));
+    };
+    if let Ok(v) = HeaderValue::from_str(content_type) {
+        h.insert(CONTENT_TYPE, v);
+    }
+    set(h, "cache-control", "no-store");
+    set(h, "x-content-type-options", "nosniff");
+    set(h, "x-frame-options", "DENY");
+    set(h, "referrer-policy", "no-referrer");
+    set(
+        h,
+        "content-security-policy",
+        "default-src 'self'; script-src 'self' 'unsafe-inline'; \
+         style-src 'self' 'unsafe-inline'; img-src 'self' data:; frame-ancestors 'none'",
+    );
+    r
+}
+
+fn json(status: u16, body: String) -> Response<Full<Bytes>> {
+    respond(status, "application/json", body)
+}
+
+fn refused(why: Refusal) -> Response<Full<Bytes>> {
+    respond(why.status(), "text/plain; charset=utf-8", why.message())
+}
+
+/// A request's body, if it is within [`MAX_BODY`] and comes within [`BODY_TIMEOUT`].
+async fn body(request: Request<Incoming>) -> Result<Bytes, Response<Full<Bytes>>> {
+    let limited = Limited::new(request.into_body(), MAX_BODY);
+    match tokio::time::timeout(BODY_TIMEOUT, limited.collect()).await {
+        Ok(Ok(collected)) => Ok(collected.to_bytes()),
+        Ok(Err(_)) => Err(respond(413, "text/plain", "a body over 1 KiB")),
+        Err(_) => Err(respond(408, "text/plain", "the body did not come in time")),
+    }
+}
+
+/// One request from `peer` on a connection whose `paired` flag it sets when it shows it
+/// is paired.
+async fn handle(
+    shared: &Shared,
+    peer: SocketAddr,
+    paired: &AtomicBool,
+    request: Request<Incoming>,
+) -> Response<Full<Bytes>> {
+    let g = &shared.guard;
+    if let Err(why) = g.check_host(request.headers()) {
+        return refused(why);
+    }
+    let path = request.uri().path().to_string();
+    match (request.method().clone(), path.as_str()) {
+        (Method::GET, "/") => respond(200, "text/html; charset=utf-8", PAGE),
+        (Method::POST, "/api/pair") => {
+            if let Err(why) = g.check_write(request.headers()) {
+                return refused(why);
+            }
+            let bytes = match body(request).await {
+                Ok(b) => b,
+                Err(r) => return r,
+            };
+            let code = serde_json::from_slice::<Value>(&bytes)
+                .ok()
+                .and_then(|v| v.get("code")?.as_str().map(str::to_string))
+                .unwrap_or_default();
+            match g.pair(peer.ip(), &code) {
+                Ok(session) => {
+                    paired.store(true, Ordering::Relaxed);
+                    let mut r = json(200, "{\"paired\":true}".into());
+                    let cookie =
+                        format!("{COOKIE_NAME}={session}; HttpOnly; SameSite=Strict; Path=/");
+                    if let Ok(v) = HeaderValue::from_str(&cookie) {
+                        r.headers_mut().insert(SET_COOKIE, v);
+                    }
+                    r
+                }
+                Err(why) => refused(why),
+            }
+        }
+        (method, "/api/map" | "/api/state" | "/api/command") => {
+            if let Err(why) = g.check_paired(request.headers()) {
+                return refused(why);
+            }
+            paired.store(true, Ordering::Relaxed);
+            match (method, path.as_str()) {
+                (Method::GET, "/api/map") => json(200, shared.map.to_string()),
+                (Method::GET, "/api/state") => {
+                    let snapshot = shared.snapshot.lock().map(|s| s.clone());
+                    json(200, snapshot.map(|s| s.to_string()).unwrap_or_default())
+                }
+                (Method::POST, "/api/command") => command(shared, request).await,
+                _ => respond(405, "text/plain", "method not allowed"),
+            }
+        }
+        _ => respond(404, "text/plain", "not found"),
+    }
+}
+
+async fn command(shared: &Shared, request: Request<Incoming>) -> Response<Full<Bytes>> {
+    if let Err(why) = shared.guard.check_write(request.headers()) {
+        return refused(why);
+    }
+    let bytes = match body(request).await {
+        Ok(b) => b,
+        Err(r) => return r,
+    };
+    let Some(c) = std::str::from_utf8(&bytes)
+        .ok()
+        .and_then(super::parse_command)
+    else {
+        return respond(
+            400,
+            "text/plain",
+            "expected {\"command\": \"stop\" | \"emergency_stop\" | \"resume\"}",
+        );
+    };
+    match shared.commands.try_send(c) {
+        Ok(()) => json(200, format!("{{\"sent\":\"{}\"}}", c.name())),
+        Err(TrySendError::Full(_)) => respond(503, "text/plain", "too many commands waiting"),
+        Err(TrySendError::Disconnected(_)) => respond(410, "text/plain", "the run has ended"),
+    }
+}
