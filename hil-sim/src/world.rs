@@ -611,7 +611,7 @@ impl World {
                 self.published_scan = hits;
             } else {
                 if !hits.is_empty() {
-                    self.station.sense(&hits);
+                    self.station.sense(&hits, base_ms);
                 }
                 self.station.step(base_ms);
                 let out = self.station.take_outbox();

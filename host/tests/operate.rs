@@ -65,38 +65,6 @@ fn run_drives_robots_over_a_pty_through_the_passage_as_sim_does() {
     paper_passage_over("pty");
 }
 
-/// A van parked across the way, not on the station's map (`[map] unmapped`: only the
-/// simulated site has it).
-const VAN_ON_THE_WAY: &str = r#"
-name = "van-on-the-way"
-[map]
-bounds = { min = [-5.0, 0.0], max = [35.0, 20.0] }
-obstacles = []
-unmapped = [
-    { kind = "rectangle", min = [14.0, 6.5], max = [16.0, 13.5] },
-]
-[[robots]]
-id = 0
-role = "leader"
-start = { x = 4.0, y = 10.0, heading_deg = 0.0 }
-[[robots]]
-id = 1
-role = "follower"
-start = { x = 1.202, y = 11.5, heading_deg = 0.0 }
-[[robots]]
-id = 2
-role = "follower"
-start = { x = 1.202, y = 8.5, heading_deg = 0.0 }
-[formation]
-shape = "triangle"
-distance = 3.0
-angle_deg = 150.0
-[route]
-goal = [26.0, 10.0]
-[sim]
-duration_s = 90.0
-"#;
-
 /// The leader's scans reach `run` as the scan feed (here from `robots --publish-scan`, on a
 /// real site from whatever processes its lidar): the station senses the van the map does
 /// not hold, plans round it, and the fleet reaches the goal without touching it.

@@ -46,6 +46,33 @@ impl Map {
         self.index.insert(entry);
     }
 
+    /// Removes an obstacle equal to `o` (one found on the way and forgotten since), if the
+    /// map holds one; the last obstacle takes its index.
+    pub fn remove(&mut self, o: &Obstacle) -> bool {
+        let [lo, hi] = o.bounds();
+        let Some(i) = self
+            .index
+            .locate_in_envelope_intersecting(&aabb(lo, hi))
+            .map(|e| e.data)
+            .find(|i| self.obstacles[*i] == *o)
+        else {
+            return false;
+        };
+        let entry = |i: usize, o: &Obstacle| {
+            let [lo, hi] = o.bounds();
+            GeomWithData::new(Rectangle::from_corners([lo.x, lo.y], [hi.x, hi.y]), i)
+        };
+        self.index.remove(&entry(i, o));
+        let last = self.obstacles.len() - 1;
+        if i != last {
+            let moved = self.obstacles[last].clone();
+            self.index.remove(&entry(last, &moved));
+            self.index.insert(entry(i, &moved));
+        }
+        self.obstacles.swap_remove(i);
+        true
+    }
+
     pub fn obstacles(&self) -> &[Obstacle] {
         &self.obstacles
     }
@@ -78,5 +105,29 @@ impl Map {
             .locate_in_envelope_intersecting(&aabb(o.min(end), o.max(end)))
             .filter_map(|e| self.obstacles[e.data].ray_cast(o, dir))
             .fold(max, f64::min)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_removed_obstacle_is_gone_and_the_others_stay_found() {
+        let disc = |x: f64| Obstacle::Circle {
+            center: DVec2::new(x, 0.0),
+            radius: 0.1,
+        };
+        let mut map = Map::new(vec![disc(0.0), disc(5.0)]);
+        map.insert(disc(10.0));
+        assert!(map.remove(&disc(0.0)));
+        assert!(!map.remove(&disc(0.0)));
+        assert_eq!(map.obstacles().len(), 2);
+        assert_eq!(map.clearance(DVec2::new(0.0, 0.0), 1.0), 1.0);
+        for x in [5.0, 10.0] {
+            assert!(map.clearance(DVec2::new(x, 0.5), 1.0) < 0.5, "{x}");
+        }
+        assert!(map.remove(&disc(10.0)));
+        assert!(map.clearance(DVec2::new(5.0, 0.5), 1.0) < 0.5);
     }
 }

@@ -4,16 +4,26 @@
 //!
 //! A hit within `EXPLAINED` of a mapped surface is the map's own obstacle and ignored;
 //! the others are kept one per `CELL`-sized cell, as discs of radius `CELL / 2` centred on
-//! the first hit of that cell. They are never forgotten (a route planned round something
-//! stays valid), and their number is bounded: past `MAX_SENSED` new hits are dropped and
-//! counted.
+//! the first hit of that cell ("marks").
+//!
+//! What a scan may claim is bounded, so no scan (nor a forged one) can stop a mission for
+//! good or blind the station to what is really there:
+//!
+//! - a hit farther from the leader than the scanner reaches (`[perception] max_range_m`),
+//!   or outside the site's bounds (plus [`BOUNDS_MARGIN`]), is no hit (`out_of_range`);
+//!   while the station does not know where the leader is, no hit is taken;
+//! - a mark not seen again for `[perception] forget_after_s` is forgotten: a van that
+//!   drove off, a wall that was never there;
+//! - past [`MAX_SENSED`] marks (or a source's share of them, [`SOURCE_SHARE`]) the mark
+//!   seen longest ago makes room for the new one: the newest observations always count.
 //!
 //! Where the station has no simulated scanner (`basestation run`), the scans come in as a
 //! line feed ([`parse_scan_line`]) from whatever processes the leader's lidar.
 
-use std::collections::HashSet;
+use std::collections::{BTreeSet, HashMap};
 
 use glam::DVec2;
+use serde::Serialize;
 
 use crate::geometry::Obstacle;
 use crate::map::Map;
@@ -24,49 +34,219 @@ pub const CELL: f64 = 0.2;
 pub const EXPLAINED: f64 = 0.15;
 /// Most sensed obstacles kept.
 pub const MAX_SENSED: usize = 8192;
+/// The share of [`MAX_SENSED`] one source may hold.
+pub const SOURCE_SHARE: usize = MAX_SENSED / 2;
+/// A hit this far outside the site's bounds is off the site, m.
+pub const BOUNDS_MARGIN: f64 = 1.0;
 
-#[derive(Debug, Clone, Default)]
+/// What bounds the scans, from the scenario's `[perception]` and the site's bounds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PerceptionLimits {
+    /// Farthest a hit may lie from the leader, m.
+    pub max_range: f64,
+    /// A mark not seen again for this long is forgotten, ms.
+    pub forget_after_ms: u32,
+    /// The site's bounds (min, max), when the site file gives them.
+    pub bounds: Option<(DVec2, DVec2)>,
+}
+
+impl PerceptionLimits {
+    pub fn from_scenario(s: &crate::scenario::Scenario) -> Self {
+        Self {
+            max_range: s.perception.max_range_m,
+            forget_after_ms: (s.perception.forget_after_s * 1000.0).round() as u32,
+            bounds: s
+                .map
+                .bounds
+                .map(|b| (DVec2::from(b.min), DVec2::from(b.max))),
+        }
+    }
+
+    /// Whether a hit at `hit` is one the leader at `leader` can have seen on this site.
+    fn plausible(&self, hit: DVec2, leader: DVec2) -> bool {
+        let on_site = self.bounds.is_none_or(|(lo, hi)| {
+            let m = DVec2::splat(BOUNDS_MARGIN);
+            hit.cmpge(lo - m).all() && hit.cmple(hi + m).all()
+        });
+        hit.is_finite() && on_site && hit.distance(leader) <= self.max_range
+    }
+}
+
+/// What the scans brought, by what became of their hits.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct PerceptionCounts {
+    /// Hits off the site or out of the scanner's reach (or before the leader was known).
+    pub out_of_range: u64,
+    /// Marks forgotten, not seen again.
+    pub forgotten: u64,
+    /// Marks that made room for newer ones.
+    pub evicted: u64,
+}
+
+#[derive(Debug, Clone)]
+struct Mark {
+    obstacle: Obstacle,
+    last_seen_ms: u32,
+    source: u8,
+}
+
+/// What a scan or the passing of time changed.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Change {
+    pub added: Vec<Obstacle>,
+    pub removed: Vec<Obstacle>,
+}
+
+impl Change {
+    pub fn is_empty(&self) -> bool {
+        self.added.is_empty() && self.removed.is_empty()
+    }
+}
+
+#[derive(Debug, Clone)]
 pub struct Perception {
-    cells: HashSet<(i64, i64)>,
-    obstacles: Vec<Obstacle>,
-    dropped: u64,
+    limits: PerceptionLimits,
+    marks: HashMap<Cell, Mark>,
+    /// Each source's marks by when they were last seen.
+    by_age: HashMap<u8, Ages>,
+    counts: PerceptionCounts,
+}
+
+/// A cell of the merging grid.
+type Cell = (i64, i64);
+/// One source's marks by when they were last seen (station ms), oldest first.
+type Ages = BTreeSet<(u32, Cell)>;
+
+fn cell_of(hit: DVec2) -> Cell {
+    ((hit.x / CELL).floor() as i64, (hit.y / CELL).floor() as i64)
 }
 
 impl Perception {
-    /// Takes one scan's hits (site frame); returns the obstacles it adds.
-    pub fn absorb(&mut self, hits: &[DVec2], known: &Map) -> Vec<Obstacle> {
-        let mut added = Vec::new();
+    pub fn new(limits: PerceptionLimits) -> Self {
+        Self {
+            limits,
+            marks: HashMap::new(),
+            by_age: HashMap::new(),
+            counts: PerceptionCounts::default(),
+        }
+    }
+
+    /// Takes one scan of source `source` (its hits in the site frame), taken with the
+    /// leader at `leader` (`None`: not known, nothing is taken) at `now_ms`.
+    pub fn absorb(
+        &mut self,
+        hits: &[DVec2],
+        leader: Option<DVec2>,
+        known: &Map,
+        source: u8,
+        now_ms: u32,
+    ) -> Change {
+        let mut change = Change::default();
+        let Some(leader) = leader else {
+            self.counts.out_of_range += hits.len() as u64;
+            return change;
+        };
         for &hit in hits {
-            if !hit.is_finite() || known.clearance(hit, EXPLAINED) < EXPLAINED {
+            if !self.limits.plausible(hit, leader) {
+                self.counts.out_of_range += 1;
                 continue;
             }
-            let cell = ((hit.x / CELL).floor() as i64, (hit.y / CELL).floor() as i64);
-            if self.cells.contains(&cell) {
+            if known.clearance(hit, EXPLAINED) < EXPLAINED {
                 continue;
             }
-            if self.obstacles.len() >= MAX_SENSED {
-                self.dropped += 1;
+            let cell = cell_of(hit);
+            if let Some(mark) = self.marks.get_mut(&cell) {
+                if let Some(ages) = self.by_age.get_mut(&mark.source) {
+                    ages.remove(&(mark.last_seen_ms, cell));
+                    ages.insert((now_ms, cell));
+                }
+                mark.last_seen_ms = now_ms;
                 continue;
             }
-            self.cells.insert(cell);
-            let o = Obstacle::Circle {
+            let mine = self.by_age.get(&source).map_or(0, BTreeSet::len);
+            if self.marks.len() >= MAX_SENSED || mine >= SOURCE_SHARE {
+                let only = (mine >= SOURCE_SHARE).then_some(source);
+                if let Some(old) = self.evict(only) {
+                    self.counts.evicted += 1;
+                    change.removed.push(old);
+                }
+            }
+            let obstacle = Obstacle::Circle {
                 center: hit,
                 radius: 0.5 * CELL,
             };
-            self.obstacles.push(o.clone());
-            added.push(o);
+            self.marks.insert(
+                cell,
+                Mark {
+                    obstacle: obstacle.clone(),
+                    last_seen_ms: now_ms,
+                    source,
+                },
+            );
+            self.by_age
+                .entry(source)
+                .or_default()
+                .insert((now_ms, cell));
+            change.added.push(obstacle);
         }
-        added
+        change
     }
 
-    /// Everything sensed so far.
-    pub fn obstacles(&self) -> &[Obstacle] {
-        &self.obstacles
+    /// Forgets the mark seen longest ago (of `source` only, when given).
+    fn evict(&mut self, source: Option<u8>) -> Option<Obstacle> {
+        let (_, cell) = self
+            .by_age
+            .iter()
+            .filter(|(s, _)| source.is_none_or(|only| **s == only))
+            .filter_map(|(_, ages)| ages.first().copied())
+            .min()?;
+        self.remove(cell)
     }
 
-    /// Hits dropped because `MAX_SENSED` obstacles were already kept.
-    pub fn dropped(&self) -> u64 {
-        self.dropped
+    fn remove(&mut self, cell: Cell) -> Option<Obstacle> {
+        let mark = self.marks.remove(&cell)?;
+        if let Some(ages) = self.by_age.get_mut(&mark.source) {
+            ages.remove(&(mark.last_seen_ms, cell));
+        }
+        Some(mark.obstacle)
+    }
+
+    /// Forgets the marks not seen again for `forget_after` by `now_ms`.
+    pub fn age(&mut self, now_ms: u32) -> Change {
+        let limit = self.limits.forget_after_ms;
+        let mut stale: Vec<Cell> = self
+            .by_age
+            .values()
+            .flat_map(|ages| {
+                ages.iter()
+                    .take_while(|(seen, _)| now_ms.saturating_sub(*seen) > limit)
+                    .map(|(_, cell)| *cell)
+            })
+            .collect();
+        stale.sort_unstable();
+        let removed: Vec<Obstacle> = stale.into_iter().filter_map(|c| self.remove(c)).collect();
+        self.counts.forgotten += removed.len() as u64;
+        Change {
+            added: Vec::new(),
+            removed,
+        }
+    }
+
+    /// Everything sensed and not forgotten, in no particular order.
+    pub fn obstacles(&self) -> impl Iterator<Item = &Obstacle> + '_ {
+        self.marks.values().map(|m| &m.obstacle)
+    }
+
+    pub fn len(&self) -> usize {
+        self.marks.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.marks.is_empty()
+    }
+
+    pub fn counts(&self) -> PerceptionCounts {
+        self.counts
     }
 }
 
@@ -141,13 +321,20 @@ mod tests {
         assert!(parse_scan_line(&long).unwrap_err().contains("at most"));
     }
 
+    const LIMITS: PerceptionLimits = PerceptionLimits {
+        max_range: 10.0,
+        forget_after_ms: 30_000,
+        bounds: Some((DVec2::new(-5.0, -5.0), DVec2::new(20.0, 20.0))),
+    };
+
     #[test]
     fn mapped_surfaces_are_ignored_and_new_ones_kept_once_per_cell() {
         let known = Map::new(vec![Obstacle::Circle {
             center: DVec2::new(5.0, 0.0),
             radius: 1.0,
         }]);
-        let mut p = Perception::default();
+        let mut p = Perception::new(LIMITS);
+        let leader = Some(DVec2::ZERO);
         let added = p.absorb(
             &[
                 DVec2::new(4.0, 0.0),   // on the mapped bin
@@ -156,10 +343,88 @@ mod tests {
                 DVec2::new(0.0, 3.5),   // next cell
                 DVec2::new(f64::NAN, 0.0),
             ],
+            leader,
             &known,
+            0,
+            0,
         );
-        assert_eq!(added.len(), 2);
-        assert_eq!(p.obstacles().len(), 2);
-        assert!(p.absorb(&[DVec2::new(0.0, 3.02)], &known).is_empty());
+        assert_eq!(added.added.len(), 2);
+        assert_eq!(p.len(), 2);
+        assert!(p
+            .absorb(&[DVec2::new(0.0, 3.02)], leader, &known, 0, 100)
+            .is_empty());
+    }
+
+    /// Issue 27, finding 3: one datagram of hits far away, off the site or before the
+    /// leader is known (a hit at 1e300 made the start "inside an obstacle") adds nothing.
+    #[test]
+    fn hits_the_scanner_cannot_have_seen_are_no_hits() {
+        let known = Map::new(Vec::new());
+        let mut p = Perception::new(LIMITS);
+        let far = [
+            DVec2::new(15.0, 15.0),   // on the site, 21 m from the leader
+            DVec2::new(-8.0, 0.0),    // off the site
+            DVec2::new(1e300, 1e300), // nowhere
+        ];
+        assert!(p.absorb(&far, Some(DVec2::ZERO), &known, 0, 0).is_empty());
+        let near = [DVec2::new(2.0, 2.0)];
+        assert!(p.absorb(&near, None, &known, 0, 0).is_empty());
+        assert_eq!(p.counts().out_of_range, 4);
+        assert_eq!(
+            p.absorb(&near, Some(DVec2::ZERO), &known, 0, 0).added.len(),
+            1
+        );
+    }
+
+    /// Issue 27, finding 3: a wall of hits (here a real one seen once) is forgotten when
+    /// it is not seen again; what is seen again stays.
+    #[test]
+    fn marks_not_seen_again_are_forgotten() {
+        let known = Map::new(Vec::new());
+        let mut p = Perception::new(LIMITS);
+        let wall: Vec<DVec2> = (0..40)
+            .map(|k| DVec2::new(-3.0 + 0.2 * k as f64, 5.0))
+            .collect();
+        let van = [DVec2::new(3.0, -2.0)];
+        p.absorb(&wall, Some(DVec2::ZERO), &known, 0, 0);
+        for t in (0..=40_000).step_by(1000) {
+            p.absorb(&van, Some(DVec2::ZERO), &known, 0, t);
+        }
+        let forgotten = p.age(30_500);
+        assert_eq!(forgotten.removed.len(), 40);
+        assert_eq!(p.len(), 1, "the van stays");
+        assert!(p.age(40_000).is_empty());
+    }
+
+    /// Issue 27, finding 3: six datagrams of hits filled the cap and the real van was
+    /// never sensed. Past the cap (or a source's share) the marks seen longest ago make
+    /// room: what is seen now always gets in.
+    #[test]
+    fn a_full_store_makes_room_for_what_is_seen_now() {
+        let known = Map::new(Vec::new());
+        let limits = PerceptionLimits {
+            max_range: 1e9,
+            bounds: None,
+            ..LIMITS
+        };
+        let mut p = Perception::new(limits);
+        let flood: Vec<DVec2> = (0..MAX_SENSED)
+            .map(|k| DVec2::new((k % 100) as f64 * 0.3, (k / 100) as f64 * 0.3))
+            .collect();
+        let first = p.absorb(&flood, Some(DVec2::ZERO), &known, 1, 0);
+        assert_eq!(first.added.len(), MAX_SENSED);
+        assert_eq!(p.len(), SOURCE_SHARE, "one source holds its share only");
+        let van = [DVec2::new(-10.0, -10.0)];
+        let seen = p.absorb(&van, Some(DVec2::ZERO), &known, 0, 100);
+        assert_eq!(seen.added.len(), 1, "another source still gets in");
+        let again = p.absorb(
+            &[DVec2::new(-20.0, -20.0)],
+            Some(DVec2::ZERO),
+            &known,
+            1,
+            200,
+        );
+        assert_eq!((again.added.len(), again.removed.len()), (1, 1));
+        assert!(p.counts().evicted > 0);
     }
 }

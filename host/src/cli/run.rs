@@ -189,7 +189,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             l.poll(&mut station, start_unix_ms, now_ms);
         }
         if let Some(feed) = &mut scans {
-            feed.poll(&mut station, start_unix_ms + now_ms as u64);
+            feed.poll(&mut station, start_unix_ms + now_ms as u64, now_ms);
         }
         if let Some(console) = console.as_ref().filter(|c| c.alive()) {
             for command in console.commands() {
@@ -358,6 +358,7 @@ fn summary(
         },
         "localization": localization.map(|l| l.counts()),
         "scan_feed": scans,
-        "sensed_obstacles": station.perception().obstacles().len(),
+        "sensed_obstacles": station.perception().len(),
+        "perception": station.perception().counts(),
     })
 }

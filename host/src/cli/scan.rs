@@ -82,8 +82,9 @@ impl ScanFeed {
         })
     }
 
-    /// Hands every fresh scan that came in to `station`; `now_unix_ms`: the Unix clock now.
-    pub fn poll(&mut self, station: &mut BaseStation, now_unix_ms: u64) {
+    /// Hands every fresh scan that came in to `station`; `now_unix_ms`: the Unix clock now,
+    /// `now_ms` the station's.
+    pub fn poll(&mut self, station: &mut BaseStation, now_unix_ms: u64, now_ms: u32) {
         while let Ok(line) = self.lines.try_recv() {
             match line {
                 Err(why) => {
@@ -98,7 +99,7 @@ impl ScanFeed {
                     }
                     self.counts.scans += 1;
                     self.counts.hits += hits.len() as u64;
-                    station.sense(&hits);
+                    station.sense(&hits, now_ms);
                 }
             }
         }

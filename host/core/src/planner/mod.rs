@@ -294,6 +294,20 @@ impl Planner {
         routing.unchecked.extend_from_slice(obstacles);
     }
 
+    /// Sensed obstacles that are gone again; `map`: what remains (the site and the
+    /// obstacles still sensed).
+    pub fn remove_obstacles(&mut self, obstacles: &[Obstacle], map: &Map) {
+        let Some(routing) = self.routing.as_mut() else {
+            return;
+        };
+        if let Some(planner) = routing.planner.as_mut() {
+            for o in obstacles {
+                planner.remove_obstacle(o, map);
+            }
+        }
+        routing.unchecked.retain(|u| !obstacles.contains(u));
+    }
+
     /// How many times the route was planned again because the way was blocked.
     pub fn replans(&self) -> u32 {
         self.routing.as_ref().map_or(0, |r| r.replans)

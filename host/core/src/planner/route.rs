@@ -218,6 +218,23 @@ impl ClearanceGrid {
         self.stamp(o, self.cap as f64);
     }
 
+    /// Raises the clearances near an obstacle that is gone (a sensed one forgotten) to
+    /// what `map`, which no longer holds it, gives there.
+    pub fn restore(&mut self, o: &Obstacle, map: &Map) {
+        let (lo, cell, cap) = (self.origin, self.cell, self.cap as f64);
+        let [blo, bhi] = o.bounds();
+        let i0 = ((blo.x - cap - lo.x) / cell).floor().max(0.0) as usize;
+        let j0 = ((blo.y - cap - lo.y) / cell).floor().max(0.0) as usize;
+        let i1 = (((bhi.x + cap - lo.x) / cell).ceil().max(0.0) as usize).min(self.nx - 1);
+        let j1 = (((bhi.y + cap - lo.y) / cell).ceil().max(0.0) as usize).min(self.ny - 1);
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let p = lo + DVec2::new(i as f64, j as f64) * cell;
+                self.clear[j * self.nx + i] = map.clearance(p, cap).max(0.0) as f32;
+            }
+        }
+    }
+
     pub fn extent(&self) -> Extent {
         Extent {
             origin: self.origin,
@@ -448,6 +465,11 @@ impl RoutePlanner {
     /// Adds an obstacle the map did not hold (sensed) to the grid.
     pub fn add_obstacle(&mut self, o: &Obstacle) {
         self.grid.add(o);
+    }
+
+    /// Takes a sensed obstacle out of the grid again; `map`: what remains.
+    pub fn remove_obstacle(&mut self, o: &Obstacle, map: &Map) {
+        self.grid.restore(o, map);
     }
 
     /// Extra cost per metre of a cell with clearance `c` (∞ when blocked).

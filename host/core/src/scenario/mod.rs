@@ -112,6 +112,8 @@ pub struct Scenario {
     #[serde(default)]
     pub localization: LocalizationSpec,
     #[serde(default)]
+    pub perception: PerceptionSpec,
+    #[serde(default)]
     pub sim: SimSpec,
     /// Faults and attacks the simulator injects (simulation only).
     #[serde(default)]
@@ -590,6 +592,25 @@ impl Default for LocalizationSpec {
             forward_hz: 10.0,
             lost_after_s: 2.0,
             stop_after_s: 10.0,
+        }
+    }
+}
+
+/// What the station takes from the leader's scans (`docs/scenario.md#perception`).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PerceptionSpec {
+    /// The scanner's reach: a hit farther from the leader is no hit, m.
+    pub max_range_m: f64,
+    /// A sensed obstacle not seen again for this long is forgotten, s.
+    pub forget_after_s: f64,
+}
+
+impl Default for PerceptionSpec {
+    fn default() -> Self {
+        Self {
+            max_range_m: 30.0,
+            forget_after_s: 30.0,
         }
     }
 }

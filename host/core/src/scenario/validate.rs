@@ -283,6 +283,8 @@ impl Scenario {
             p.fail("localization.sigma_m", "must be at least 0.001 m");
         }
         p.positive("localization.rate_hz", z.rate_hz);
+        p.positive("perception.max_range_m", self.perception.max_range_m);
+        p.positive("perception.forget_after_s", self.perception.forget_after_s);
         p.positive("localization.forward_hz", z.forward_hz);
         if p.positive("localization.lost_after_s", z.lost_after_s)
             && p.positive("localization.stop_after_s", z.stop_after_s)

@@ -29,7 +29,7 @@ pub use smoothing::TurnRateSmoother;
 
 use crate::formation::{FollowerStatus, FormationManager, FormationSpec};
 use crate::map::Map;
-use crate::perception::Perception;
+use crate::perception::{Change, Perception, PerceptionLimits};
 use crate::planner::route::RouteParams;
 use crate::planner::{Guidance, PlanPose, Planner, PlannerParams};
 
@@ -60,6 +60,8 @@ pub struct StationConfig {
     pub period_ms: u32,
     /// How fixes from a localization source are forwarded and watched.
     pub fixes: FixLimits,
+    /// What the leader's scans may claim, and how long what they found is kept.
+    pub perception: PerceptionLimits,
 }
 
 /// What the station knows of one robot.
@@ -277,6 +279,7 @@ impl StationConfig {
             follower_accel: 0.5 * s.robot.max_accel,
             period_ms: 100,
             fixes: FixLimits::from_spec(&s.localization),
+            perception: PerceptionLimits::from_scenario(s),
         }
     }
 }
@@ -317,9 +320,10 @@ impl BaseStation {
         };
         let formation = FormationManager::new(cfg.formation.clone());
         let world = cfg.map.clone();
+        let perception = cfg.perception;
         Self {
             cfg,
-            perception: Perception::default(),
+            perception: Perception::new(perception),
             world,
             link,
             decoder: FrameDecoder::new(),
@@ -436,20 +440,35 @@ impl BaseStation {
         }
     }
 
-    /// One scan of the leader's range scanner: hit points in the site frame. Hits the map
-    /// explains are ignored; the rest become obstacles the leader avoids, and the route is
-    /// planned again if they lie on it.
-    pub fn sense(&mut self, hits: &[DVec2]) {
-        let added = self.perception.absorb(hits, &self.cfg.map);
-        if added.is_empty() {
+    /// One scan of the leader's range scanner at `now_ms`: hit points in the site frame.
+    /// Hits the map explains are ignored, and hits the leader cannot have seen (off the
+    /// site, out of reach, or while the station does not know where it is); the rest
+    /// become obstacles the leader avoids, and the route is planned again if they lie on
+    /// it ([`crate::perception`]).
+    pub fn sense(&mut self, hits: &[DVec2], now_ms: u32) {
+        let leader = self.leader_estimate(now_ms).map(|l| l.pose.position);
+        let change = self
+            .perception
+            .absorb(hits, leader, &self.cfg.map, 0, now_ms);
+        self.apply_sensed(change);
+    }
+
+    /// What perception added or forgot, into the planner and the station's map.
+    fn apply_sensed(&mut self, change: Change) {
+        if change.is_empty() {
             return;
         }
         tracing::debug!(
-            count = added.len(),
+            added = change.added.len(),
+            forgotten = change.removed.len(),
             "sensed obstacles the map does not hold"
         );
-        self.planner.add_obstacles(&added);
-        for o in added {
+        for o in &change.removed {
+            self.world.remove(o);
+        }
+        self.planner.remove_obstacles(&change.removed, &self.world);
+        self.planner.add_obstacles(&change.added);
+        for o in change.added {
             self.world.insert(o);
         }
     }
@@ -655,6 +674,8 @@ impl BaseStation {
         }
 
         self.send_due_fixes(now_ms);
+        let forgotten = self.perception.age(now_ms);
+        self.apply_sensed(forgotten);
         self.check_fixes(now_ms);
         if let Some(hold) = self.operator_hold {
             // Every period, not once: a robot that missed it (a lost frame) gets the next.
