@@ -49,11 +49,23 @@ fn a_foxglove_client_receives_the_robots_poses_live() {
     std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
     let _sim = Killed(sim);
 
-    let mut request = url.into_client_request().unwrap();
-    request
-        .headers_mut()
-        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
-    let (mut socket, _) = tungstenite::connect(request).unwrap();
+    let request = |origin: Option<&str>| {
+        let mut request = url.as_str().into_client_request().unwrap();
+        let headers = request.headers_mut();
+        headers.insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+        if let Some(o) = origin {
+            headers.insert("Origin", o.parse().unwrap());
+        }
+        request
+    };
+    // Issue 27, finding 4: a page of any other site cannot open the stream in a visitor's
+    // browser (nor a name rebound to the station); Foxglove's web app can.
+    match tungstenite::connect(request(Some("http://evil.example"))) {
+        Err(tungstenite::Error::Http(response)) => assert_eq!(response.status(), 403),
+        other => panic!("another origin opened the stream: {:?}", other.map(|_| ())),
+    }
+    assert!(tungstenite::connect(request(Some("https://app.foxglove.dev"))).is_ok());
+    let (mut socket, _) = tungstenite::connect(request(None)).unwrap();
     let start = Instant::now();
     let mut pose_channel = None;
     let mut stamps = Vec::new();

@@ -6,6 +6,7 @@ pub mod decode;
 pub mod feed;
 pub mod feed_key;
 pub mod feed_relay;
+pub mod live_gate;
 pub mod localization;
 pub mod record;
 pub mod robot_config;

@@ -44,11 +44,12 @@ pub fn now_ns() -> u64 {
 }
 
 impl LiveRecording {
-    /// Records to `mcap` and/or serves on `live` (either may be absent), a pose channel per
-    /// robot of `robots`.
+    /// Records to `mcap` and/or serves on `live` (either may be absent; browsers' pages from
+    /// `origins` and the default ones may open it), a pose channel per robot of `robots`.
     pub fn create(
         mcap: Option<&Path>,
         live: Option<SocketAddr>,
+        origins: &[String],
         robots: impl IntoIterator<Item = u16>,
     ) -> anyhow::Result<Self> {
         let ctx = Context::new();
@@ -66,17 +67,16 @@ impl LiveRecording {
         };
         let server = match live {
             Some(addr) => {
+                // The server itself on the loopback only; the gate on `addr` checks Origin.
                 let server = WebSocketServer::new()
                     .name("sweeper base station")
                     .context(&ctx)
-                    .bind(addr.ip().to_string(), addr.port())
+                    .bind("127.0.0.1", 0)
                     .start_blocking()
-                    .with_context(|| format!("cannot serve Foxglove on {addr}"))?;
-                eprintln!(
-                    "live (Foxglove WebSocket): ws://{}:{}",
-                    addr.ip(),
-                    server.port()
-                );
+                    .context("cannot start the Foxglove server")?;
+                let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
+                let bound = super::live_gate::start(addr, inner, origins)?;
+                eprintln!("live (Foxglove WebSocket): ws://{bound}");
                 Some(server)
             }
             None => None,

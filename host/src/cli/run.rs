@@ -68,6 +68,10 @@ pub struct RunArgs {
     /// 127.0.0.1:8765]: the channels of `--mcap`, for Foxglove or Lichtblick.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
     pub live: Option<SocketAddr>,
+    /// A web page's origin allowed to open `--live` in a browser, beside Foxglove's and
+    /// Lichtblick's web apps (repeatable; clients that send no Origin always may).
+    #[arg(long, value_name = "ORIGIN", requires = "live")]
+    pub live_origin: Vec<String>,
     /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<std::path::PathBuf>,
@@ -133,6 +137,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         (mcap, live) => Some(super::record::LiveRecording::create(
             mcap.as_deref(),
             live,
+            &args.live_origin,
             station.robots().keys().copied(),
         )?),
     };

@@ -64,6 +64,10 @@ pub struct SimArgs {
     /// simulated clock.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765", requires = "realtime")]
     pub live: Option<std::net::SocketAddr>,
+    /// A web page's origin allowed to open `--live` in a browser, beside Foxglove's and
+    /// Lichtblick's web apps (repeatable; clients that send no Origin always may).
+    #[arg(long, value_name = "ORIGIN", requires = "live")]
+    pub live_origin: Vec<String>,
     /// Inject a fault, as a TOML inline table with the fields of `[[faults]]`, e.g.
     /// `--fault '{ at_s = 30, kind = "loss_burst", duration_s = 10 }'`. Repeatable.
     #[arg(long = "fault", value_name = "TABLE")]
@@ -109,6 +113,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         Some(addr) => Some(super::record::LiveRecording::create(
             None,
             Some(addr),
+            &args.live_origin,
             scenario.robots.iter().map(|r| r.id),
         )?),
         None => None,
