@@ -96,25 +96,61 @@ fn decode_one(
 /// The first bytes of an MCAP file.
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
-/// The frames of a recording's radio channel, one JSON line each.
-fn decode_recording(bytes: &[u8], key: Option<&MasterKey>) -> anyhow::Result<()> {
+/// The largest MCAP record `decode` takes, bytes: a radio message is a few hundred; a
+/// damaged or hostile file that claims more is refused, not allocated.
+const MAX_RECORD: usize = 16 * 1024 * 1024;
+
+/// The frames of a recording's radio channel, one JSON line each, read as a stream: what
+/// is held at once is bounded by [`MAX_RECORD`] whatever the file says.
+fn decode_recording(file: std::fs::File, key: Option<&MasterKey>) -> anyhow::Result<()> {
+    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    let mut input = std::io::BufReader::new(file);
+    let mut reader = LinearReader::new_with_options(
+        LinearReaderOptions::default().with_record_length_limit(MAX_RECORD),
+    );
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let mut decoders: HashMap<String, FrameDecoder> = HashMap::new();
     let mut sessions = HashMap::new();
+    // The channels of the radio topic (by id): nothing else of the file is kept.
+    let mut radio = std::collections::HashSet::new();
     let (mut frames, mut rejected) = (0u64, 0u64);
-    let messages = mcap::MessageStream::new(bytes).context("not a readable MCAP file")?;
-    for message in messages {
-        let message = message.context("a damaged MCAP record")?;
-        if message.channel.topic != hil_sim::recording::RADIO_TOPIC {
-            continue;
-        }
-        let sent: Value = serde_json::from_slice(&message.data).context("a radio message")?;
+    while let Some(event) = reader.next_event() {
+        let (opcode, data) = match event.context("a damaged MCAP file")? {
+            LinearReadEvent::ReadRequest(need) => {
+                let n = input
+                    .read(reader.insert(need.min(MAX_RECORD)))
+                    .context("reading the recording")?;
+                reader.notify_read(n);
+                continue;
+            }
+            LinearReadEvent::Record { opcode, data } => (opcode, data),
+        };
+        let message = match mcap::parse_record(opcode, data).context("a damaged MCAP record")? {
+            mcap::records::Record::Channel(c) => {
+                if c.topic == hil_sim::recording::RADIO_TOPIC {
+                    radio.insert(c.id);
+                }
+                continue;
+            }
+            mcap::records::Record::Message { header, data }
+                if radio.contains(&header.channel_id) =>
+            {
+                (header.log_time, data)
+            }
+            _ => continue,
+        };
+        let (log_time, data) = message;
+        let sent: Value = serde_json::from_slice(&data).context("a radio message")?;
         let (Some(from), Some(bytes)) = (
             sent["from"].as_str(),
             sent["hex"].as_str().and_then(|h| hex::decode(h).ok()),
         ) else {
             anyhow::bail!("a radio message without `from` and `hex`");
         };
+        // A sender per name, of the few a recording has (base, air, the attacker).
+        if decoders.len() >= 64 && !decoders.contains_key(from) {
+            anyhow::bail!("more than 64 senders on the radio channel");
+        }
         let decoder = decoders.entry(from.to_string()).or_default();
         for b in bytes {
             let Some(result) = decoder.push(b) else {
@@ -124,7 +160,7 @@ fn decode_recording(bytes: &[u8], key: Option<&MasterKey>) -> anyhow::Result<()>
                 Ok(raw) => decode_one(raw, key, &mut sessions),
                 Err(reason) => json!({"ok": false, "reject": reason.name()}),
             };
-            line["t_s"] = json!(message.log_time as f64 / 1e9);
+            line["t_s"] = json!(log_time as f64 / 1e9);
             line["sender"] = json!(from);
             frames += 1;
             if line["ok"] == json!(false) {
@@ -149,9 +185,9 @@ pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
             .is_ok()
             && head == MCAP_MAGIC;
         if is_mcap {
-            let bytes =
-                std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-            return decode_recording(&bytes, key.as_ref());
+            let file = std::fs::File::open(path)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            return decode_recording(file, key.as_ref());
         }
     }
     let mut input: Box<dyn Read> = match &args.file {

@@ -41,7 +41,13 @@ pub const SHIPPED: &[(&str, &str)] = &[
 pub fn load_scenario(arg: &str) -> anyhow::Result<Scenario> {
     let path = std::path::Path::new(arg);
     let (src, file) = if path.exists() {
-        let src = std::fs::read_to_string(path)
+        // Read no more than a scenario may hold: a huge file is refused, not loaded.
+        let max = base_station::scenario::MAX_FILE_BYTES as u64;
+        let mut src = String::new();
+        std::fs::File::open(path)
+            .and_then(|f| {
+                std::io::Read::read_to_string(&mut std::io::Read::take(f, max + 1), &mut src)
+            })
             .with_context(|| format!("cannot read {}", path.display()))?;
         (src, path.display().to_string())
     } else {

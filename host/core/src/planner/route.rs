@@ -36,6 +36,9 @@ use crate::map::Map;
 
 /// Most cells of a grid; larger sites get coarser cells.
 pub const MAX_CELLS: usize = 4_000_000;
+/// Cells × edges of a polygon measured the plain way at most; a larger or more detailed
+/// one is stamped edge by edge ([`ClearanceGrid::stamp`]).
+const POLYGON_WORK: f64 = 50e6;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RouteParams {
@@ -100,7 +103,13 @@ impl Extent {
     /// `MAX_CELLS`).
     pub fn new(lo: DVec2, hi: DVec2, cell: f64) -> Self {
         let size = (hi - lo).max(DVec2::splat(cell));
-        let cell = cell.max((size.x * size.y / MAX_CELLS as f64).sqrt());
+        let mut cell = cell.max((size.x * size.y / MAX_CELLS as f64).sqrt());
+        let cells = |cell: f64| ((size.x / cell).ceil() + 1.0) * ((size.y / cell).ceil() + 1.0);
+        // A long thin area has more cells than its surface says (a row at least): coarser
+        // until the count, not the surface, is within the budget.
+        while cells(cell) > MAX_CELLS as f64 {
+            cell *= 1.25;
+        }
         Self {
             origin: lo,
             cell,
@@ -191,14 +200,27 @@ impl ClearanceGrid {
         grid
     }
 
-    /// Lowers the clearances within `reach` of `o` to the exact distance to it.
-    pub fn stamp(&mut self, o: &Obstacle, reach: f64) {
+    /// The cells (i0..=i1, j0..=j1) of the box `[blo, bhi]` grown by `reach`.
+    fn cells_of(&self, blo: DVec2, bhi: DVec2, reach: f64) -> (usize, usize, usize, usize) {
         let (lo, cell) = (self.origin, self.cell);
-        let [blo, bhi] = o.bounds();
         let i0 = ((blo.x - reach - lo.x) / cell).floor().max(0.0) as usize;
         let j0 = ((blo.y - reach - lo.y) / cell).floor().max(0.0) as usize;
         let i1 = (((bhi.x + reach - lo.x) / cell).ceil().max(0.0) as usize).min(self.nx - 1);
         let j1 = (((bhi.y + reach - lo.y) / cell).ceil().max(0.0) as usize).min(self.ny - 1);
+        (i0, i1, j0, j1)
+    }
+
+    /// Lowers the clearances within `reach` of `o` to the exact distance to it.
+    pub fn stamp(&mut self, o: &Obstacle, reach: f64) {
+        let (lo, cell) = (self.origin, self.cell);
+        let [blo, bhi] = o.bounds();
+        let (i0, i1, j0, j1) = self.cells_of(blo, bhi, reach);
+        if let Obstacle::Polygon { points } = o {
+            let work = (i1 + 1 - i0) as f64 * (j1 + 1 - j0) as f64 * points.len() as f64;
+            if work > POLYGON_WORK {
+                return self.stamp_large_polygon(points, reach);
+            }
+        }
         for j in j0..=j1 {
             let y = lo.y + j as f64 * cell;
             let row = &mut self.clear[j * self.nx..(j + 1) * self.nx];
@@ -207,6 +229,63 @@ impl ClearanceGrid {
                 let d = o.nearest(p).distance.max(0.0) as f32;
                 if d < *c {
                     *c = d;
+                }
+            }
+        }
+    }
+
+    /// [`ClearanceGrid::stamp`] for a polygon too large or detailed to measure every
+    /// edge from every cell of its box (a hostile or careless site file): each edge
+    /// lowers only the cells within `reach` of it, and the cells inside are filled row by
+    /// row (the crossing rule of `point_in_polygon`). Exact within `reach`; beyond it,
+    /// cells keep what they had.
+    fn stamp_large_polygon(&mut self, points: &[DVec2], reach: f64) {
+        let (lo, cell, n) = (self.origin, self.cell, points.len());
+        let piece = reach.max(cell);
+        for k in 0..n {
+            let (a, b) = (points[k], points[(k + 1) % n]);
+            let pieces = ((b - a).length() / piece).ceil().max(1.0) as usize;
+            for m in 0..pieces {
+                let pa = a.lerp(b, m as f64 / pieces as f64);
+                let pb = a.lerp(b, (m + 1) as f64 / pieces as f64);
+                let (i0, i1, j0, j1) = self.cells_of(pa.min(pb), pa.max(pb), reach);
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        let p = lo + DVec2::new(i as f64, j as f64) * cell;
+                        let q = crate::geometry::closest_on_segment(p, a, b);
+                        let d = (p - q).length() as f32;
+                        let c = &mut self.clear[j * self.nx + i];
+                        if d <= reach as f32 && d < *c {
+                            *c = d;
+                        }
+                    }
+                }
+            }
+        }
+        let [blo, bhi] = Obstacle::Polygon {
+            points: points.to_vec(),
+        }
+        .bounds();
+        let (i0, i1, j0, j1) = self.cells_of(blo, bhi, 0.0);
+        let mut crossings = Vec::new();
+        for j in j0..=j1 {
+            let y = lo.y + j as f64 * cell;
+            crossings.clear();
+            let mut prev = n - 1;
+            for k in 0..n {
+                let (a, b) = (points[k], points[prev]);
+                if (a.y > y) != (b.y > y) {
+                    crossings.push((b.x - a.x) * (y - a.y) / (b.y - a.y) + a.x);
+                }
+                prev = k;
+            }
+            crossings.sort_by(f64::total_cmp);
+            for i in i0..=i1 {
+                let x = lo.x + i as f64 * cell;
+                // Inside when an odd number of crossings lie right of the cell's centre.
+                let right = crossings.len() - crossings.partition_point(|c| *c <= x);
+                if right % 2 == 1 {
+                    self.clear[j * self.nx + i] = 0.0;
                 }
             }
         }

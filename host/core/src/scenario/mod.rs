@@ -90,6 +90,11 @@ impl fmt::Display for ScenarioErrors {
 
 impl std::error::Error for ScenarioErrors {}
 
+/// The largest scenario or site file read, bytes. Parsing TOML costs up to ~100 times the
+/// file in memory (a 16 MiB file of polygon points took 1.7 GB), so this keeps `check` well
+/// under 1 GB on any file; a city's site file of thousands of obstacles is a few hundred kB.
+pub const MAX_FILE_BYTES: usize = 4 * 1024 * 1024;
+
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
@@ -657,6 +662,14 @@ impl Scenario {
                 field,
                 message,
             };
+        if src.len() > MAX_FILE_BYTES {
+            return Err(error(
+                String::new(),
+                None,
+                format!("over 4 MiB: a scenario or site file is at most {MAX_FILE_BYTES} bytes"),
+            )
+            .into());
+        }
         let de = toml::Deserializer::parse(src).map_err(|e| {
             error(
                 String::new(),

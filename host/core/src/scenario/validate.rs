@@ -5,13 +5,62 @@ use glam::DVec2;
 
 use super::*;
 
+/// How far from the site's origin any coordinate may lie, m: a city is smaller.
+pub const MAX_COORDINATE: f64 = 1e6;
+/// Most obstacles in `map.obstacles`, and again in `map.unmapped`.
+pub const MAX_OBSTACLES: usize = 100_000;
+/// Most points of one polygon.
+pub const MAX_POLYGON_POINTS: usize = 1_000;
+/// Most polygon points of a whole map.
+pub const MAX_MAP_POINTS: usize = 200_000;
+/// Most waypoints of a route.
+pub const MAX_WAYPOINTS: usize = 10_000;
+/// Most robots of a fleet (the base station's link table).
+pub const MAX_FLEET: usize = 1024;
+/// Most faults a simulation injects.
+pub const MAX_FAULTS: usize = 1_000;
+/// How many times over the obstacles' boxes, each weighted by its points (1 for a circle
+/// or segment), may cover the site's box: the planner measures every cell of a box from
+/// every edge, so this bounds its work (a city map covers its site a few times).
+pub const MAX_COVER: f64 = 1000.0;
+/// Problems listed at most; the rest are counted.
+const MAX_PROBLEMS: usize = 100;
+
 /// The problems found so far, as `(field, message)`.
 #[derive(Default)]
-struct Problems(Vec<(String, String)>);
+struct Problems(Vec<(String, String)>, usize);
 
 impl Problems {
     fn fail(&mut self, field: &str, msg: &str) {
-        self.0.push((field.to_string(), msg.to_string()));
+        if self.0.len() < MAX_PROBLEMS {
+            self.0.push((field.to_string(), msg.to_string()));
+        } else {
+            self.1 += 1;
+        }
+    }
+
+    /// Whether every coordinate is finite and within [`MAX_COORDINATE`] of the origin.
+    fn coordinates(&mut self, field: &str, vs: &[f64]) -> bool {
+        if !self.finite(field, vs) {
+            return false;
+        }
+        let ok = vs.iter().all(|v| v.abs() <= MAX_COORDINATE);
+        if !ok {
+            self.fail(
+                field,
+                "must lie within 1,000,000 m of the site's origin (x and y)",
+            );
+        }
+        ok
+    }
+
+    /// Whether `list` holds at most `max` items.
+    fn at_most(&mut self, field: &str, len: usize, max: usize, what: &str) -> bool {
+        let ok = len <= max;
+        if !ok {
+            self.fail(field, &format!("{len} {what}: at most {max}"));
+        }
+        ok
     }
 
     fn positive(&mut self, field: &str, v: f64) -> bool {
@@ -51,6 +100,10 @@ impl Scenario {
     /// Semantic checks: every problem, each naming its field.
     pub fn validate(&self) -> Result<(), Vec<(String, String)>> {
         let mut p = Problems::default();
+        if !self.check_sizes(&mut p) {
+            // Too large to check item by item: say so, and nothing else.
+            return Err(p.0);
+        }
         self.check_robot(&mut p);
         let map_ok = self.check_map(&mut p);
         let robots_ok = self.check_robots(&mut p, map_ok);
@@ -58,11 +111,100 @@ impl Scenario {
         self.check_route(&mut p, map_ok);
         self.check_gains(&mut p);
         self.check_sim(&mut p);
+        if p.1 > 0 {
+            let more = format!("and {} more problems", p.1);
+            p.0.push((String::new(), more));
+        }
         if p.0.is_empty() {
             Ok(())
         } else {
             Err(p.0)
         }
+    }
+
+    /// The counts a file may not exceed: whether all are within theirs.
+    fn check_sizes(&self, p: &mut Problems) -> bool {
+        let mut ok = true;
+        for (field, list) in [
+            ("map.obstacles", &self.map.obstacles),
+            ("map.unmapped", &self.map.unmapped),
+        ] {
+            ok &= p.at_most(field, list.len(), MAX_OBSTACLES, "obstacles");
+            let mut points = 0;
+            for (i, o) in list.iter().enumerate() {
+                let n = o.points.as_ref().map_or(0, Vec::len);
+                points += n;
+                if n > MAX_POLYGON_POINTS {
+                    let field = format!("{field}[{i}].points");
+                    ok &= p.at_most(&field, n, MAX_POLYGON_POINTS, "points");
+                }
+            }
+            ok &= p.at_most(field, points, MAX_MAP_POINTS, "polygon points in all");
+        }
+        ok &= p.at_most(
+            "route.waypoints",
+            self.route.waypoints.len(),
+            MAX_WAYPOINTS,
+            "waypoints",
+        );
+        ok &= p.at_most("robots", self.robots.len(), MAX_FLEET, "robots");
+        ok &= p.at_most("faults", self.faults.len(), MAX_FAULTS, "faults");
+        ok && self.check_cover(p)
+    }
+
+    /// Whether the obstacles' boxes (weighted by points) cover the site at most
+    /// [`MAX_COVER`] times over.
+    fn check_cover(&self, p: &mut Problems) -> bool {
+        let obstacles = || self.map.obstacles.iter().chain(&self.map.unmapped);
+        let boxes: Vec<([DVec2; 2], f64)> = obstacles()
+            .filter(|o| o.check("").is_ok())
+            .map(|o| {
+                let o = o.to_obstacle();
+                let weight = match &o {
+                    crate::geometry::Obstacle::Polygon { points } => points.len() as f64,
+                    _ => 1.0,
+                };
+                (o.bounds(), weight)
+            })
+            // An obstacle out of bounds is refused by its own field's check.
+            .filter(|([lo, hi], _)| {
+                let within =
+                    |q: DVec2| q.is_finite() && q.abs().max_element() <= 2.0 * MAX_COORDINATE;
+                within(*lo) && within(*hi)
+            })
+            .collect();
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        let starts = self.robots.iter().map(|r| DVec2::new(r.start.x, r.start.y));
+        for q in boxes
+            .iter()
+            .flat_map(|(b, _)| *b)
+            .chain(starts)
+            .chain(self.route.points())
+            .filter(|q| q.is_finite())
+        {
+            lo = lo.min(q);
+            hi = hi.max(q);
+        }
+        let border = DVec2::splat(5.0);
+        let site = (hi - lo + 2.0 * border).max(DVec2::ONE);
+        let cover: f64 = boxes
+            .iter()
+            .map(|([a, b], w)| ((*b - *a).x + 0.1) * ((*b - *a).y + 0.1) * w)
+            .sum::<f64>()
+            / (site.x * site.y);
+        let ok = cover <= MAX_COVER;
+        if !ok {
+            p.fail(
+                "map.obstacles",
+                &format!(
+                    "the obstacles' boxes, each counted once per polygon point, cover the \
+                     site {cover:.0} times over (at most {MAX_COVER:.0}): describe each \
+                     obstacle once, as a simple shape"
+                ),
+            );
+        }
+        ok
     }
 
     fn check_robot(&self, p: &mut Problems) {
@@ -88,7 +230,8 @@ impl Scenario {
     fn check_map(&self, p: &mut Problems) -> bool {
         let before = p.0.len();
         if let Some(b) = self.map.bounds {
-            let finite = p.finite("map.bounds.min", &b.min) & p.finite("map.bounds.max", &b.max);
+            let finite =
+                p.coordinates("map.bounds.min", &b.min) & p.coordinates("map.bounds.max", &b.max);
             if finite && (b.min[0] >= b.max[0] || b.min[1] >= b.max[1]) {
                 p.fail("map.bounds", "`min` must lie below and left of `max`");
             } else if finite {
@@ -155,7 +298,8 @@ impl Scenario {
                 );
             }
             let s = robot.start;
-            let start_ok = p.finite(&format!("{field}.start"), &[s.x, s.y, s.heading_deg]);
+            let start_ok = p.coordinates(&format!("{field}.start"), &[s.x, s.y])
+                && p.finite(&format!("{field}.start"), &[s.heading_deg]);
             p.finite(&format!("{field}.initial_speed"), &[robot.initial_speed]);
             if let (true, Some(site)) = (start_ok, &site) {
                 if site.clearance(DVec2::new(s.x, s.y), 10.0) < footprint {
@@ -219,7 +363,7 @@ impl Scenario {
         let map = map_ok.then(|| self.build_map());
         for (i, q) in route.iter().enumerate() {
             let field = self.route_field(i);
-            if !p.finite(&field, &[q.x, q.y]) {
+            if !p.coordinates(&field, &[q.x, q.y]) {
                 continue;
             }
             if let Some(map) = &map {
@@ -375,10 +519,12 @@ fn check_obstacle(p: &mut Problems, field: &str, o: &ObstacleSpec) {
     }
     let at = |name: &str| format!("{field}.{name}");
     if let Some(c) = o.center {
-        p.finite(&at("center"), &c);
+        p.coordinates(&at("center"), &c);
     }
     if let Some(r) = o.radius {
-        p.positive(&at("radius"), r);
+        if p.positive(&at("radius"), r) && r > MAX_COORDINATE {
+            p.fail(&at("radius"), "must be at most 1,000,000 m");
+        }
     }
     for (name, q) in [
         ("from", o.from),
@@ -387,7 +533,7 @@ fn check_obstacle(p: &mut Problems, field: &str, o: &ObstacleSpec) {
         ("max", o.max),
     ] {
         if let Some(q) = q {
-            p.finite(&at(name), &q);
+            p.coordinates(&at(name), &q);
         }
     }
     if o.kind == ObstacleKind::Segment && o.from == o.to {
@@ -403,7 +549,7 @@ fn check_obstacle(p: &mut Problems, field: &str, o: &ObstacleSpec) {
             p.fail(&at("points"), "a polygon needs at least 3 points");
         }
         for (j, q) in points.iter().enumerate() {
-            p.finite(&format!("{field}.points[{j}]"), q);
+            p.coordinates(&format!("{field}.points[{j}]"), q);
         }
     }
 }
