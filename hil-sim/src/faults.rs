@@ -8,7 +8,9 @@ use std::collections::VecDeque;
 use base_station::scenario::{FaultKind, FaultSpec};
 use control_core::controller::{MotorOutput, Sensors};
 use protocol::link::{Link, Timing};
-use protocol::messages::{Hello, LeaderState, Message, RobotMode, Welcome, WirePose};
+use protocol::messages::{
+    Detour, Hello, LeaderState, Message, PoseFix, RobotMode, VelocityCommand, Welcome, WirePose,
+};
 use protocol::{Address, FleetKey, FrameDecoder, RejectCounts, MAX_WIRE};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -92,6 +94,9 @@ pub struct Injector {
     owed_garbage: f64,
     owed_forgeries: f64,
     owed_hellos: f64,
+    owed_captured: f64,
+    /// The captured robot's forgeries so far (their sequence numbers).
+    captured_sent: u32,
 }
 
 impl Injector {
@@ -119,6 +124,8 @@ impl Injector {
             owed_garbage: 0.0,
             owed_forgeries: 0.0,
             owed_hellos: 0.0,
+            owed_captured: 0.0,
+            captured_sent: 0,
         }
     }
 
@@ -253,6 +260,57 @@ impl Injector {
             on_air.extend_from_slice(frame);
         }
         Cow::Owned(on_air)
+    }
+
+    /// A captured robot's forgeries during one step of `step_s` ending at `t_us`: sealed
+    /// with the genuine broadcast key, in the base station's `session` (it is public, in
+    /// every `Welcome`), numbered above any genuine broadcast.
+    /// `link`: the broadcast key and the station's session, asked only while the attack
+    /// runs.
+    pub fn captured(
+        &mut self,
+        t_us: u64,
+        step_s: f64,
+        link: impl FnOnce() -> (FleetKey, u32),
+    ) -> Vec<u8> {
+        let mut out = Vec::new();
+        let Some(f) = self.active(FaultKind::CapturedRobot, t_us as f64 / 1e6) else {
+            return out;
+        };
+        let (key, session) = link();
+        self.owed_captured += f.value.unwrap_or(0.0) * step_s;
+        let far = WirePose::from_si(30.0, 30.0, 0.0).unwrap_or_default();
+        while self.owed_captured >= 1.0 {
+            self.owed_captured -= 1.0;
+            self.captured_sent += 1;
+            let message = match self.captured_sent % 3 {
+                0 => Message::VelocityCommand(VelocityCommand {
+                    v_mm_s: 1500,
+                    omega_mrad_s: 0,
+                }),
+                1 => Message::Detour(Detour {
+                    x_mm: 30_000,
+                    y_mm: 30_000,
+                }),
+                _ => Message::PoseFix(PoseFix {
+                    pose: far,
+                    sigma_mm: 10,
+                }),
+            };
+            let header = protocol::Header {
+                version: protocol::PROTOCOL_VERSION,
+                id: message.id(),
+                from: Address::Base,
+                to: Address::Broadcast,
+                seq: 0x4000_0000 + self.captured_sent,
+                time_ms: (t_us / 1000) as u32,
+            };
+            let mut buf = [0u8; MAX_WIRE];
+            if let Ok(n) = protocol::frame::seal(&key, session, &header, &message, &mut buf) {
+                out.extend_from_slice(&buf[..n]);
+            }
+        }
+        out
     }
 
     /// The attacker's transmissions during one step of `step_s` ending at `t_us`.

@@ -492,7 +492,11 @@ impl World {
                 }
             }
         }
-        let attack = self.injector.attack(self.t_us, step_us as f64 / 1e6);
+        let mut attack = self.injector.attack(self.t_us, step_us as f64 / 1e6);
+        let (options, station) = (&self.options, &self.station);
+        attack.extend(self.injector.captured(self.t_us, step_us as f64 / 1e6, || {
+            (options.fleet_key().broadcast(), station.link().session())
+        }));
         if !attack.is_empty() {
             let attacker = self.robots.len() + 1;
             self.transmit(attacker, &attack);

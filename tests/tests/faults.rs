@@ -448,3 +448,45 @@ fn held_back_welcomes_leave_the_fleet_safe() {
         "the fleet links again once the attack stops"
     );
 }
+
+/// Issue 27, finding 5 in the simulator: a robot taken apart broadcasts, with the key
+/// every robot holds, a velocity command of 1.5 m/s, detours 30 m off and pose fixes 4 m
+/// off, 20 frames/s from 5 s on. Every one is refused as `wrong_destination`; the leader
+/// never drives faster than its planner asks (1.0 m/s) and the run matches the clean one.
+#[test]
+fn a_captured_robots_broadcast_commands_are_refused_and_change_nothing() {
+    let clean = run(shipped("paper-obstacles"), 1).0;
+    let s = with(
+        shipped("paper-obstacles"),
+        &[(5.0, FaultKind::CapturedRobot, None, None, Some(20.0))],
+    );
+    let (r, world) = run(s, 1);
+    assert_safe(&r);
+    assert!(r.goal_reached);
+    let by = &r.link.rejects_by_reason;
+    let refused = by.get("wrong_destination").copied().unwrap_or(0);
+    println!("captured robot: {refused} forgeries refused ({by:?})");
+    // Three robots hear each of ~20 frames/s for the run (~70 s) after 5 s.
+    assert!(refused > 2000, "{by:?}");
+    let leader = world.robots.iter().position(|x| x.id == 0).unwrap();
+    let fastest = world
+        .recorder
+        .samples
+        .iter()
+        .map(|s| s.robots[leader].v)
+        .fold(0.0, f64::max);
+    assert!(fastest < 1.05, "the leader drove at {fastest:.2} m/s");
+    for (a, b) in clean.robots.iter().zip(&r.robots) {
+        let (a, b) = (
+            a.max_tracking_error_m.unwrap_or(0.0),
+            b.max_tracking_error_m.unwrap_or(0.0),
+        );
+        assert!(
+            (a - b).abs() < 0.05,
+            "tracking error {a} clean, {b} attacked"
+        );
+    }
+    let (a, b) = (clean.time_to_goal_s.unwrap(), r.time_to_goal_s.unwrap());
+    println!("time to goal: {a:.1} s clean, {b:.1} s attacked");
+    assert!((a - b).abs() < 2.0);
+}

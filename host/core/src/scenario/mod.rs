@@ -172,6 +172,10 @@ pub enum FaultKind {
     /// The base station's `Welcome` frames are jammed at the robot and delivered `value`
     /// seconds later (an attempt to roll a replay floor back).
     WelcomeHoldback,
+    /// A robot taken apart: with the broadcast key every robot holds, an attacker
+    /// broadcasts what drives or places one robot (a velocity command of 1.5 m/s, a detour
+    /// 30 m off, a pose fix 4 m off), `value` frames/s.
+    CapturedRobot,
 }
 
 /// One scheduled fault. Fields beyond `at_s` and `kind` depend on the kind.

@@ -492,6 +492,7 @@ impl Scenario {
                     | FaultKind::DelayRelay
                     | FaultKind::HelloReplay
                     | FaultKind::WelcomeHoldback
+                    | FaultKind::CapturedRobot
             );
             match (needs_value, f.value) {
                 (true, None) => p.fail(&format!("faults[{i}]"), "this fault needs `value`"),
