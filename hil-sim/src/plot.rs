@@ -111,7 +111,7 @@ where
         grow(a.x, a.y);
         grow(b.x, b.y);
     }
-    if let Some(g) = world.station.planner().goal() {
+    if let Some(g) = world.station.guidance().planner().goal() {
         grow(g.x, g.y);
     }
     let span = (hi.0 - lo.0).max(hi.1 - lo.1) + 2.0;
@@ -163,14 +163,14 @@ where
             }
         }
     }
-    if let Some(g) = world.station.planner().goal() {
+    if let Some(g) = world.station.guidance().planner().goal() {
         chart.draw_series(std::iter::once(Cross::new(
             (g.x, g.y),
             8,
             BLACK.stroke_width(2),
         )))?;
     }
-    if let Some(route) = world.station.planner().route() {
+    if let Some(route) = world.station.route() {
         chart
             .draw_series(LineSeries::new(
                 route.points.iter().map(|p| (p.x, p.y)),

@@ -620,7 +620,7 @@ impl World {
                 self.station.step(base_ms);
                 let out = self.station.take_outbox();
                 self.transmit(0, &out);
-                if let Some(route) = self.station.planner().route() {
+                if let Some(route) = self.station.route() {
                     if self.routes.last().is_none_or(|(_, r)| *r != route.points) {
                         self.routes.push((t, route.points.clone()));
                     }
@@ -711,7 +711,7 @@ impl World {
     /// external station, the true leader has passed every route point in order.
     fn arrived(&mut self) -> bool {
         if self.observer.is_none() {
-            return self.station.planner().arrived();
+            return self.station.arrived();
         }
         let route = self.scenario.route.points();
         let Some(at) = self.leader_position() else {

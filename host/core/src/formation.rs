@@ -101,6 +101,15 @@ impl Reason {
     }
 }
 
+/// What one step of the formation manager gives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShapeStep {
+    /// 0 wide … 1 line.
+    pub blend: f64,
+    /// The change of shape that began this step.
+    pub change: Option<Transformation>,
+}
+
 /// A change of shape, for the record.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transformation {
@@ -537,7 +546,8 @@ impl FormationManager {
 
     /// One step. `leader`: its pose; `ahead`: the path the leader will drive, from the
     /// leader on; `behind`: the path it drove, newest first (both sampled finely,
-    /// ≤ 0.25 m); `followers`: their positions where known.
+    /// ≤ 0.25 m); `followers`: their positions where known. The blend now, and the shape
+    /// change this step began, if any.
     pub fn step(
         &mut self,
         now_s: f64,
@@ -546,7 +556,27 @@ impl FormationManager {
         behind: &[DVec2],
         followers: &[Option<FollowerStatus>],
         map: &Map,
-    ) -> f64 {
+    ) -> ShapeStep {
+        let changes = self.events.len();
+        self.decide(now_s, leader, ahead, behind, followers, map);
+        self.advance(now_s, leader, behind, followers, map);
+        ShapeStep {
+            blend: self.blend,
+            change: self.events[changes..].last().copied(),
+        }
+    }
+
+    /// Whether to change shape now: into the line before a narrow way, back out of it
+    /// once the way is wide again everywhere the formation is or goes.
+    fn decide(
+        &mut self,
+        now_s: f64,
+        leader: LeaderMotion,
+        ahead: &[DVec2],
+        behind: &[DVec2],
+        followers: &[Option<FollowerStatus>],
+        map: &Map,
+    ) {
         let need_in = self.spec.wide_width() + self.spec.margin;
         let need_out = need_in + HYSTERESIS;
         let length = self.wide_reach().max(self.line_reach());
@@ -584,6 +614,17 @@ impl FormationManager {
                 }
             }
         }
+    }
+
+    /// The change under way moves on, at the pace the followers and the world allow.
+    fn advance(
+        &mut self,
+        now_s: f64,
+        leader: LeaderMotion,
+        behind: &[DVec2],
+        followers: &[Option<FollowerStatus>],
+        map: &Map,
+    ) {
         if let Some(t) = self.transition {
             let progress = t.progress_at(now_s);
             self.blend = self.blend_of(progress);
@@ -607,7 +648,6 @@ impl FormationManager {
                 });
             }
         }
-        self.blend
     }
 
     /// The blend at `progress` along the change under way.

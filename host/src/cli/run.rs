@@ -222,7 +222,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
                 l.log();
             }
         }
-        if args.duration.is_none() && station.planner().arrived() {
+        if args.duration.is_none() && station.arrived() {
             let at = *arrived_ms.get_or_insert_with(|| {
                 tracing::info!("goal reached");
                 now_ms
@@ -300,7 +300,7 @@ fn log_link(station: &BaseStation, now_ms: u32, per_robot: bool) {
         accepted = stats.accepted,
         rejected = stats.rejects.total(),
         lost = stats.lost,
-        planner = ?station.planner().mode(),
+        planner = ?station.guidance().planner().mode(),
         "link"
     );
     if !per_robot {
@@ -353,7 +353,7 @@ fn summary(
         .collect();
     json!({
         "scenario": scenario,
-        "goal_reached": station.planner().arrived(),
+        "goal_reached": station.arrived(),
         "station_events": events,
         "link": {
             "accepted": stats.accepted,

@@ -152,6 +152,20 @@ pub enum Mode {
     Arrived,
 }
 
+/// What happened in the planner, as it tells the station: each kind at most once a step.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PlannerEvent {
+    /// Stuck in a local minimum: following an obstacle's boundary (field guidance).
+    Escape,
+    /// The way was blocked: the route was planned again.
+    Replanned,
+    /// The step ended without a route to the next waypoint (said once until there is one
+    /// again), and why.
+    NoRoute(String),
+    /// The last waypoint was reached.
+    Arrived,
+}
+
 /// One step's result.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Command {
@@ -178,6 +192,10 @@ pub struct Planner {
     omega: f64,
     turn_accel: f64,
     routing: Option<Box<Routing>>,
+    /// What happened since the station last took the events.
+    events: Vec<PlannerEvent>,
+    /// Whether the step ended without a route last time (said once).
+    no_route_said: bool,
 }
 
 /// The route layer's state.
@@ -245,7 +263,26 @@ impl Planner {
             omega: 0.0,
             turn_accel: f64::INFINITY,
             routing: None,
+            events: Vec::new(),
+            no_route_said: false,
         }
+    }
+
+    /// Notes `event`, unless one of its kind waits already.
+    fn note(&mut self, event: PlannerEvent) {
+        let kind = std::mem::discriminant(&event);
+        if !self
+            .events
+            .iter()
+            .any(|e| std::mem::discriminant(e) == kind)
+        {
+            self.events.push(event);
+        }
+    }
+
+    /// What happened since the last call, in order, each kind once.
+    pub fn take_events(&mut self) -> Vec<PlannerEvent> {
+        std::mem::take(&mut self.events)
     }
 
     /// A planner that follows a route planned on the site map with `router`'s parameters.
@@ -398,7 +435,36 @@ impl Planner {
 
     /// One planning step. `half_width`: the formation's lateral half-width (0 for a line),
     /// added to the footprint; `speed_scale` in [0, 1] slows the leader (followers lagging).
+    /// What happened is noted for [`Planner::take_events`].
     pub fn step(
+        &mut self,
+        now_s: f64,
+        dt: f64,
+        pose: PlanPose,
+        map: &Map,
+        half_width: f64,
+        speed_scale: f64,
+    ) -> Command {
+        let was_arrived = self.arrived();
+        let command = self.step_guided(now_s, dt, pose, map, half_width, speed_scale);
+        match (self.no_route().map(ToString::to_string), self.no_route_said) {
+            (Some(why), false) => {
+                tracing::warn!("no route: {why}");
+                self.note(PlannerEvent::NoRoute(why));
+                self.no_route_said = true;
+            }
+            (None, true) => self.no_route_said = false,
+            _ => {}
+        }
+        if self.arrived() && !was_arrived {
+            tracing::info!("goal reached");
+            self.note(PlannerEvent::Arrived);
+        }
+        command
+    }
+
+    /// [`Planner::step`] by the guidance in use.
+    fn step_guided(
         &mut self,
         now_s: f64,
         dt: f64,
@@ -552,6 +618,7 @@ impl Planner {
             tracing::info!(blocked, "something unmapped on the way: planning again");
             routing.replans += 1;
             routing.route = None;
+            self.note(PlannerEvent::Replanned);
             self.plan_route(from, now_s, map);
         }
     }
@@ -700,6 +767,7 @@ impl Planner {
             routing.blocked.push((ahead, 0.5));
             routing.replans += 1;
             routing.route = None;
+            self.note(PlannerEvent::Replanned);
             self.plan_route(pos, now_s, map);
             return hold(self, Mode::Route);
         }
@@ -814,6 +882,8 @@ impl Planner {
                 best_at_s: now_s,
             };
             self.escapes += 1;
+            tracing::info!("planner: local minimum, following the boundary");
+            self.note(PlannerEvent::Escape);
             self.progress.clear();
         }
     }

@@ -218,7 +218,6 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         })
         .unwrap_or_default();
     let route: Vec<[f64; 2]> = station
-        .planner()
         .route()
         .map(|r| r.points.iter().map(|p| [p.x, p.y]).collect())
         .unwrap_or_default();
@@ -238,7 +237,7 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         "shape": format!("{:?}", station.formation().target()).to_lowercase(),
         "blend": station.formation().blend(),
         "hold": station.operator_hold().map(|h| h.name()),
-        "arrived": station.planner().arrived(),
+        "arrived": station.arrived(),
         "events": events,
     })
 }

@@ -1,0 +1,193 @@
+//! What the station hears and says over the authenticated link: frames in (telemetry to
+//! the fleet room, handshakes answered at once), and out (challenges, slots, detours, the
+//! leader's state), each sealed into the outbox the driver sends.
+
+use glam::DVec2;
+use protocol::link::Event;
+use protocol::messages::{Detour, FormationCommand, LeaderState, Message, Slot, Stop, WirePose};
+use protocol::{units, Address, Reject, MAX_WIRE};
+
+use super::fleet::{is_following, position, LeaderEstimate};
+use super::{detour, BaseStation, Gate, StationEvent};
+use crate::planner::PlanPose;
+
+impl BaseStation {
+    /// Bytes to transmit, oldest first.
+    pub fn take_outbox(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.outbox)
+    }
+
+    /// Counts a frame the byte decoder could not even deframe.
+    pub fn count_reject(&mut self, reason: Reject) {
+        self.link.count_reject(reason);
+    }
+
+    pub(super) fn send(&mut self, to: Address, now_ms: u32, message: &Message) {
+        let mut buf = [0u8; MAX_WIRE];
+        match self.link.send(to, now_ms, message, &mut buf) {
+            Ok(n) => self.outbox.extend_from_slice(&buf[..n]),
+            Err(e) => tracing::warn!(?to, "cannot send {}: {e}", message.name()),
+        }
+    }
+
+    /// A Stop to every robot.
+    pub(super) fn broadcast(&mut self, stop: Stop, now_ms: u32) {
+        self.send(Address::Broadcast, now_ms, &Message::Stop(stop));
+    }
+
+    /// Bytes from the radio.
+    pub fn receive(&mut self, bytes: &[u8], now_ms: u32) {
+        for &b in bytes {
+            let Some(frame) = self.decoder.push(b) else {
+                continue;
+            };
+            match self.link.receive(frame, now_ms) {
+                Ok(Event::Message { header, message }) => {
+                    if let (Address::Robot(id), Message::Telemetry(t)) = (header.from, message) {
+                        let offset = self
+                            .link
+                            .peer(header.from)
+                            .and_then(|p| p.clock_offset_ms)
+                            .unwrap_or(0);
+                        // Robot clock → ours; never later than now.
+                        let at = header.time_ms.wrapping_sub(offset as u32);
+                        let pose_at = if (now_ms.wrapping_sub(at) as i32) < 0 {
+                            now_ms
+                        } else {
+                            at
+                        };
+                        let heard = self.fleet.hear(id, t, pose_at, now_ms);
+                        self.events.extend(heard.events);
+                        if heard.halts {
+                            self.gate = Gate::Halted;
+                        }
+                    }
+                }
+                Ok(Event::Challenged { from, nonce }) => {
+                    let mut buf = [0u8; MAX_WIRE];
+                    if let Ok(n) = self.link.answer(from, nonce, now_ms, &mut buf) {
+                        self.outbox.extend_from_slice(&buf[..n]);
+                        // The robot verifies our frames from this answer on: its slots go
+                        // out at the next step (sent before, they were refused).
+                        self.last_slots_ms = None;
+                    }
+                }
+                Ok(Event::Linked { peer }) => {
+                    if let Address::Robot(robot) = peer {
+                        tracing::info!(robot, "linked");
+                        self.events.push(StationEvent::Linked {
+                            robot,
+                            at_ms: now_ms,
+                        });
+                        self.last_slots_ms = None;
+                    }
+                }
+                Ok(Event::Synced { .. } | Event::Ignored) => {}
+                Err(reason) => tracing::debug!(%reason, "frame rejected"),
+            }
+        }
+    }
+
+    /// Challenges to the robots whose link needs one.
+    pub(super) fn challenge_due(&mut self, now_ms: u32) {
+        let mut buf = [0u8; MAX_WIRE];
+        while let Some(peer) = self.link.due_challenge(now_ms) {
+            match self.link.challenge(peer, now_ms, &mut buf) {
+                Ok(n) => self.outbox.extend_from_slice(&buf[..n]),
+                Err(_) => break,
+            }
+        }
+    }
+
+    /// Each follower's two slots.
+    pub(super) fn send_slots(&mut self, now_ms: u32) {
+        let n = self.cfg.followers.len();
+        for (k, id) in self.cfg.followers.clone().into_iter().enumerate() {
+            let slot =
+                |(l, phi): (f64, f64)| Slot::from_si(l as f32, phi as f32).unwrap_or_default();
+            let formation = self.guidance.formation();
+            let cmd = Message::FormationCommand(FormationCommand {
+                followers: n.min(u16::MAX as usize) as u16,
+                index: k.min(u16::MAX as usize) as u16,
+                wide: slot(formation.wide_slots()[k]),
+                line: slot(formation.line_slots()[k]),
+            });
+            self.send(Address::Robot(id), now_ms, &cmd);
+        }
+    }
+
+    /// The pose is the leader's (measured, predicted to now); the velocity is the one it
+    /// was just told to drive. The followers then start to speed up or turn when the
+    /// leader does, not a motor lag later: their own lag matches the leader's. The turn
+    /// rate is smoothed where it only jitters ([`super::TurnRateSmoother`]).
+    pub(super) fn broadcast_leader_state(
+        &mut self,
+        leader: &LeaderEstimate,
+        twist: (f64, f64),
+        blend: f64,
+        now_ms: u32,
+    ) {
+        let p = leader.pose;
+        let twist = (twist.0, self.broadcast_omega.step(twist.1));
+        if let Ok(pose) =
+            WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32)
+        {
+            let state = Message::LeaderState(LeaderState {
+                pose,
+                v_mm_s: units::to_milli_i16(twist.0 as f32).unwrap_or(0),
+                omega_mrad_s: units::to_milli_i16(twist.1 as f32).unwrap_or(0),
+                blend: (blend.clamp(0.0, 1.0) * 255.0).round() as u8,
+            });
+            self.send(Address::Broadcast, now_ms, &state);
+        }
+    }
+
+    /// Detours for the followers held on their way ([`detour`]), sent every period.
+    pub(super) fn send_detours(&mut self, leader: PlanPose, behind: &[DVec2], now_ms: u32) {
+        let mut followers = Vec::new();
+        for (k, id) in self.cfg.followers.iter().enumerate() {
+            let Some(t) = self.fleet.telemetry(*id, now_ms) else {
+                continue;
+            };
+            if !is_following(t.mode) {
+                continue;
+            }
+            followers.push(detour::Follower {
+                id: *id,
+                position: position(&t),
+                reference: self.guidance.formation().reference(k, leader, behind),
+                error: t.tracking_error_mm as f64 / 1000.0,
+            });
+        }
+        let robots = self.fleet.positions(now_ms);
+        let footprint = self.guidance.formation().spec().footprint;
+        let detours = self
+            .detours
+            .step(now_ms, &self.world, footprint, &followers, &robots);
+        for (robot, point, new) in detours {
+            if new {
+                tracing::info!(
+                    robot,
+                    x = point.x,
+                    y = point.y,
+                    "follower sent round an obstacle"
+                );
+                self.events.push(StationEvent::FollowerDetour {
+                    robot,
+                    at_ms: now_ms,
+                });
+            }
+            let (Ok(x_mm), Ok(y_mm)) = (
+                units::metres_to_mm(point.x as f32),
+                units::metres_to_mm(point.y as f32),
+            ) else {
+                continue;
+            };
+            self.send(
+                Address::Robot(robot),
+                now_ms,
+                &Message::Detour(Detour { x_mm, y_mm }),
+            );
+        }
+    }
+}
