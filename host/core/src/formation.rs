@@ -35,7 +35,7 @@
 use glam::DVec2;
 
 use crate::map::Map;
-use crate::planner::PlanPose;
+use crate::geometry::PlanPose;
 
 /// The shape outside passages.
 #[derive(Debug, Clone, PartialEq)]

@@ -14,6 +14,14 @@ pub fn wrap_angle(a: f64) -> f64 {
     }
 }
 
+/// A robot's pose in the site frame, as the planner and the formation manager see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanPose {
+    pub position: DVec2,
+    /// Counter-clockwise from the site's x axis, rad.
+    pub heading: f64,
+}
+
 /// An obstacle on the map.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]

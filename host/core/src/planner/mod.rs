@@ -46,6 +46,7 @@ use std::collections::VecDeque;
 
 use glam::DVec2;
 
+pub use crate::geometry::PlanPose;
 use crate::geometry::{wrap_angle, Obstacle};
 use crate::map::Map;
 use apf::ApfParams;
@@ -222,12 +223,6 @@ struct Routing {
     last_attempt_s: f64,
 }
 
-/// The robot's pose as the planner sees it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlanPose {
-    pub position: DVec2,
-    pub heading: f64,
-}
 
 /// The least distance from `obstacles` to `route` beyond arc length `from`, looking no
 /// farther than `reach` (∞ when nothing is that close).
