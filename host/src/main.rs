@@ -1,6 +1,8 @@
 //! `basestation`: the operator's program. One module per subcommand under `cli/`.
 
-mod cli;
+mod commands;
+mod key;
+mod live;
 
 use clap::{Parser, Subcommand};
 use tracing_subscriber::EnvFilter;
@@ -19,23 +21,23 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Drive real robots over a serial radio modem or UDP.
-    Run(cli::run::RunArgs),
+    Run(commands::run::RunArgs),
     /// Validate a scenario or site file and print a summary.
-    Check(cli::check::CheckArgs),
+    Check(commands::check::CheckArgs),
     /// Decode a captured byte stream or a recording's radio channel: one JSON line per frame.
-    Decode(cli::decode::DecodeArgs),
+    Decode(commands::decode::DecodeArgs),
     /// Simulate the fleet (software in the loop) and report against the paper.
-    Sim(cli::sim::SimArgs),
+    Sim(commands::sim::SimArgs),
     /// Run a scenario's simulated robots in real time behind UDP or a pseudo-terminal, for
     /// `run` to drive as it drives real robots.
-    Robots(cli::robots::RobotsArgs),
+    Robots(commands::robots::RobotsArgs),
     /// Write a robot's configuration page (id, role, fleet key) for flashing.
-    RobotConfig(cli::robot_config::RobotConfigArgs),
+    RobotConfig(commands::robot_config::RobotConfigArgs),
     /// Write the key of one localization or scan source of the site.
-    FeedKey(cli::feed_key::FeedKeyArgs),
+    FeedKey(commands::feed_key::FeedKeyArgs),
     /// Seal lines (standard input, a serial port, a TCP stream) with a source's key and
     /// send them to the base station's feed.
-    FeedRelay(cli::feed_relay::FeedRelayArgs),
+    FeedRelay(commands::feed_relay::FeedRelayArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -52,14 +54,14 @@ fn main() -> std::process::ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let result = match cli.command {
-        Command::Run(args) => cli::run::run(args),
-        Command::Check(args) => cli::check::run(args),
-        Command::Decode(args) => cli::decode::run(args),
-        Command::Sim(args) => cli::sim::run(args),
-        Command::Robots(args) => cli::robots::run(args),
-        Command::RobotConfig(args) => cli::robot_config::run(args),
-        Command::FeedKey(args) => cli::feed_key::run(args),
-        Command::FeedRelay(args) => cli::feed_relay::run(args),
+        Command::Run(args) => commands::run::run(args),
+        Command::Check(args) => commands::check::run(args),
+        Command::Decode(args) => commands::decode::run(args),
+        Command::Sim(args) => commands::sim::run(args),
+        Command::Robots(args) => commands::robots::run(args),
+        Command::RobotConfig(args) => commands::robot_config::run(args),
+        Command::FeedKey(args) => commands::feed_key::run(args),
+        Command::FeedRelay(args) => commands::feed_relay::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -34,8 +34,8 @@
 
 use glam::DVec2;
 
-use crate::map::Map;
 use crate::geometry::PlanPose;
+use crate::map::Map;
 
 /// The shape outside passages.
 #[derive(Debug, Clone, PartialEq)]

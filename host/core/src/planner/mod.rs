@@ -223,7 +223,6 @@ struct Routing {
     last_attempt_s: f64,
 }
 
-
 /// The least distance from `obstacles` to `route` beyond arc length `from`, looking no
 /// farther than `reach` (∞ when nothing is that close).
 fn nearest_to_route(obstacles: &[Obstacle], route: &Route, from: f64, reach: f64) -> f64 {

@@ -18,8 +18,7 @@ use anyhow::Context;
 use clap::Args;
 use hil_sim::world::{BaseSide, FixPath, SimOptions, World};
 
-use super::localization::{FixPublisher, PublishArg};
-use super::sim::FirmwareArg;
+use crate::live::feeds::localization::{FixPublisher, PublishArg};
 
 #[derive(Args, Debug)]
 pub struct RobotsArgs {
@@ -32,17 +31,9 @@ pub struct RobotsArgs {
     /// is printed for `run --port`.
     #[arg(long)]
     pub pty: bool,
-    #[arg(long, value_enum, default_value = "native")]
-    pub firmware: FirmwareArg,
-    /// Random seed (radio, sensor noise) [default: the scenario's].
-    #[arg(long)]
-    pub seed: Option<u64>,
     /// Write the run's report here when it ends (the schema of `sim`'s report).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
-    /// Also write a CSV trace: one row per robot per sample (docs/sim.md#the-trace).
-    #[arg(long, value_name = "FILE.csv")]
-    pub trace: Option<PathBuf>,
     /// End after this many seconds [default: the scenario's duration].
     #[arg(long)]
     pub duration: Option<f64>,
@@ -59,7 +50,9 @@ pub struct RobotsArgs {
     #[arg(long, value_name = "S")]
     pub fixes_stop_at: Option<f64>,
     #[command(flatten)]
-    pub key: super::KeyArgs,
+    pub robots: super::SimulatedArgs,
+    #[command(flatten)]
+    pub key: crate::key::KeyArgs,
 }
 
 /// How much longer than the settling time the robots wait after their goal, s.
@@ -165,17 +158,17 @@ impl Air {
 
 pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     let scenario = super::load_scenario(&args.scenario)?;
-    let key = super::require_key(&args.key)?;
+    let key = crate::key::require_key(&args.key)?;
     let name = scenario.name.clone();
     let end_s = args.duration.unwrap_or(scenario.sim.duration_s);
     let step_us = scenario.sim.physics_step_ms as u64 * 1000;
-    let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
-    options.firmware = args.firmware.into();
+    let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
+    options.firmware = args.robots.firmware.into();
     options.base = BaseSide::External;
     let mut publisher = FixPublisher::open(&args.publish_fixes, &scenario, &key)?;
     let mut scans = args
         .publish_scan
-        .map(|to| super::scan::ScanPublisher::open(to, &key))
+        .map(|to| crate::live::feeds::scan::ScanPublisher::open(to, &key))
         .transpose()?;
     options.key = Some(Arc::new(key));
     if !args.publish_fixes.is_empty() {
@@ -230,7 +223,7 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
         .unwrap_or_else(|| PathBuf::from(format!("out/{name}.robots.json")));
     super::create_parent(&path)?;
     super::write_report(&report, &path)?;
-    if let Some(path) = &args.trace {
+    if let Some(path) = &args.robots.trace {
         super::create_parent(path)?;
         super::write_trace(&world, path)?;
     }

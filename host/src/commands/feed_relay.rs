@@ -12,7 +12,7 @@ use anyhow::{bail, Context};
 use base_station::seal::{valid_name, Sealer, SourceKey};
 use clap::Args;
 
-use super::localization::Source;
+use crate::live::feeds::localization::Source;
 
 #[derive(Args, Debug)]
 pub struct FeedRelayArgs {
@@ -36,7 +36,7 @@ pub fn run(args: FeedRelayArgs) -> anyhow::Result<()> {
     if !valid_name(&args.source) {
         bail!("{:?} is not a source name", args.source);
     }
-    let text = super::read_key_file(&args.key_file)?;
+    let text = crate::key::read_key_file(&args.key_file)?;
     let mut bytes = protocol::auth::key_bytes_from_hex(&text)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.key_file.display()))?;
     let key = SourceKey::from_bytes(&args.source, &bytes);

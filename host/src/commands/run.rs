@@ -44,7 +44,7 @@ pub struct RunArgs {
     /// Read robot ID's GNSS receiver (NMEA 0183): `ID=udp:ADDR`, `ID=tcp:HOST:PORT` or
     /// `ID=serial:PATH[@BAUD]`; repeat per robot. Needs `[localization] origin`.
     #[arg(long, value_name = "ID=SOURCE")]
-    pub nmea: Vec<super::localization::NmeaArg>,
+    pub nmea: Vec<crate::live::feeds::localization::NmeaArg>,
     /// Read the leader's scans (the scan feed: `TIME_S,X_M,Y_M,X_M,Y_M…` per line, hits in
     /// the site frame; docs/operating.md#obstacles-the-map-does-not-hold) from UDP
     /// datagrams to this local address: what the map does not hold is routed round.
@@ -54,34 +54,23 @@ pub struct RunArgs {
     /// `ADDR/PREFIX`, repeatable; default: any, sealed records only). Bind the feeds to
     /// the localization network's interface too (docs/operating.md#who-may-speak-on-the-feeds).
     #[arg(long, value_name = "NET")]
-    pub feed_allow: Vec<super::feed::AllowNet>,
+    pub feed_allow: Vec<crate::live::feeds::gate::AllowNet>,
     /// Write what the run did (station events, link and localization counts) here at the
     /// end, as JSON (docs/operating.md#the-run-report).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<std::path::PathBuf>,
-    /// Serve the operator's console on ADDR [default: 127.0.0.1:8080]: the live map and
-    /// Stop / Emergency stop / Resume. Open the URL it prints (it carries the pairing code),
-    /// or enter the printed pairing code (docs/operating.md#7-stopping-and-the-console).
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
-    pub console: Option<SocketAddr>,
-    /// Serve the run live over the Foxglove WebSocket protocol on ADDR [default:
-    /// 127.0.0.1:8765]: the channels of `--mcap`, for Foxglove or Lichtblick.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
-    pub live: Option<SocketAddr>,
-    /// A web page's origin allowed to open `--live` in a browser, beside Foxglove's and
-    /// Lichtblick's web apps (repeatable; clients that send no Origin always may).
-    #[arg(long, value_name = "ORIGIN", requires = "live")]
-    pub live_origin: Vec<String>,
     /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<std::path::PathBuf>,
     #[command(flatten)]
-    pub key: super::KeyArgs,
+    pub serve: super::ServeArgs,
+    #[command(flatten)]
+    pub key: crate::key::KeyArgs,
 }
 
 pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let scenario = super::load_scenario(&args.scenario)?;
-    let key = super::require_key(&args.key)?;
+    let key = crate::key::require_key(&args.key)?;
     let transport: Box<dyn Transport> = match (&args.port, args.udp) {
         (Some(port), _) => {
             Box::new(Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?)
@@ -110,8 +99,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         nonce_base,
     );
 
-    let allow: Arc<[super::feed::AllowNet]> = Arc::from(args.feed_allow.clone());
-    let mut localization = super::localization::Localization::open(
+    let allow: Arc<[crate::live::feeds::gate::AllowNet]> = Arc::from(args.feed_allow.clone());
+    let mut localization = crate::live::feeds::localization::Localization::open(
         args.fix_feed,
         &args.nmea,
         &scenario,
@@ -127,21 +116,21 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
 
     let mut scans = args
         .scan_feed
-        .map(|addr| super::scan::ScanFeed::open(addr, &key, allow.clone()))
+        .map(|addr| crate::live::feeds::scan::ScanFeed::open(addr, &key, allow.clone()))
         .transpose()?;
 
-    let console = super::console::Console::open(args.console, &scenario)?;
+    let console = crate::live::console::Console::open(args.serve.console, &scenario)?;
 
-    let mut recording = match (&args.mcap, args.live) {
+    let mut recording = match (&args.mcap, args.serve.live) {
         (None, None) => None,
-        (mcap, live) => Some(super::record::LiveRecording::create(
+        (mcap, live) => Some(crate::live::recording::LiveRecording::create(
             mcap.as_deref(),
             live,
-            &args.live_origin,
+            &args.serve.live_origin,
             station.robots().keys().copied(),
         )?),
     };
-    let now_ns = super::record::now_ns;
+    let now_ns = crate::live::recording::now_ns;
 
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
@@ -156,7 +145,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut buf = [0u8; 2048];
     let mut last_report = 0u32;
     let mut arrived_ms = None;
-    let mut timing = super::timing::LoopTiming::default();
+    let mut timing = crate::live::timing::LoopTiming::default();
     while !stop.load(Ordering::SeqCst) {
         let now_ms = start.elapsed().as_millis() as u32;
         if args.duration.is_some_and(|d| now_ms as f64 / 1000.0 >= d) {
@@ -203,7 +192,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         station.step(now_ms);
         if let Some(console) = &console {
-            console.publish(&super::console::snapshot(&station, now_ms));
+            console.publish(&crate::live::console::snapshot(&station, now_ms));
         }
         let out = station.take_outbox();
         transport.send(&out);
@@ -333,8 +322,8 @@ fn log_link(station: &BaseStation, now_ms: u32, per_robot: bool) {
 fn summary(
     scenario: &str,
     station: &BaseStation,
-    localization: Option<&super::localization::Localization>,
-    scans: Option<super::scan::ScanCounts>,
+    localization: Option<&crate::live::feeds::localization::Localization>,
+    scans: Option<crate::live::feeds::scan::ScanCounts>,
 ) -> serde_json::Value {
     let leader = station.config().leader;
     let events: Vec<_> = station

@@ -24,7 +24,7 @@ pub struct DecodeArgs {
     /// absent or `-`.
     pub file: Option<PathBuf>,
     #[command(flatten)]
-    pub key: super::KeyArgs,
+    pub key: crate::key::KeyArgs,
 }
 
 fn address(a: Address) -> String {

@@ -21,7 +21,7 @@ pub struct FeedKeyArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]
-    pub key: super::KeyArgs,
+    pub key: crate::key::KeyArgs,
 }
 
 pub fn run(args: FeedKeyArgs) -> anyhow::Result<()> {
@@ -31,7 +31,7 @@ pub fn run(args: FeedKeyArgs) -> anyhow::Result<()> {
             args.source
         );
     }
-    let master = super::require_key(&args.key)?;
+    let master = crate::key::require_key(&args.key)?;
     let bytes = Zeroizing::new(master.source_bytes(&args.source));
     let text = Zeroizing::new(hex::encode(&bytes[..]) + "\n");
     super::robot_config::write_private(&args.output, text.as_bytes())?;

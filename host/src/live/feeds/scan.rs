@@ -18,7 +18,7 @@ use glam::DVec2;
 use protocol::MasterKey;
 use serde::Serialize;
 
-use super::feed::{AllowNet, Gate, GateCounts, GateTally};
+use super::gate::{AllowNet, Gate, GateCounts, GateTally};
 
 /// The scan feed's source name: its key is `MasterKey::source_bytes("scan")`.
 pub const SCAN_SOURCE: &str = "scan";
@@ -67,12 +67,12 @@ impl ScanFeed {
         let full = dropped.clone();
         let gate = Gate::new("scan feed", SCAN_SOURCE, master, allow);
         let gate_counts = gate.counts();
-        super::feed::read_udp_records(socket, "scan feed", gate, move |line| {
+        super::gate::read_udp_records(socket, "scan feed", gate, move |line| {
             let parsed = match std::str::from_utf8(line) {
                 Ok(text) => parse_scan_line(text).transpose(),
                 Err(_) => Some(Err("not UTF-8".to_string())),
             };
-            parsed.is_none_or(|p| super::feed::offer(&tx, p, &full))
+            parsed.is_none_or(|p| super::gate::offer(&tx, p, &full))
         })?;
         Ok(Self {
             lines,

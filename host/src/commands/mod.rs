@@ -1,28 +1,25 @@
-//! One module per subcommand, and what they share: scenarios and the fleet key.
+//! One module per subcommand (the probe-rs layout), and what they share: scenarios,
+//! files and the flag groups more than one takes. The live helpers they use while a run
+//! goes on (console, feeds, recording) are in `crate::live`; the fleet key in `crate::key`.
 
 pub mod check;
-pub mod console;
 pub mod decode;
-pub mod feed;
 pub mod feed_key;
 pub mod feed_relay;
-pub mod live_gate;
-pub mod localization;
-pub mod record;
 pub mod robot_config;
 pub mod robots;
 pub mod run;
-pub mod scan;
 pub mod sim;
-pub mod timing;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use base_station::scenario::Scenario;
-use clap::Args;
-use protocol::MasterKey;
-use zeroize::Zeroizing;
+use clap::{Args, ValueEnum};
+use hil_sim::world::Firmware;
 
 /// The scenarios shipped with the program, by name.
 pub const SHIPPED: &[(&str, &str)] = &[
@@ -103,75 +100,50 @@ pub fn write_trace(world: &hil_sim::world::World, path: &Path) -> anyhow::Result
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// Where the fleet key comes from. Never from the binary: a real run without one fails.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum FirmwareArg {
+    /// The control core compiled for this machine.
+    Native,
+    /// The real firmware ELF, one QEMU per robot.
+    Qemu,
+}
+
+impl From<FirmwareArg> for Firmware {
+    fn from(arg: FirmwareArg) -> Self {
+        match arg {
+            FirmwareArg::Native => Firmware::Native,
+            FirmwareArg::Qemu => Firmware::Qemu,
+        }
+    }
+}
+
+/// How the simulated robots run and what they write beside the report (`sim`, `robots`).
 #[derive(Args, Debug, Clone)]
-pub struct KeyArgs {
-    /// File holding the fleet's master key: 64 hexadecimal digits.
-    #[arg(long, env = "SWEEPER_KEY_FILE")]
-    pub key_file: Option<PathBuf>,
+pub struct SimulatedArgs {
+    /// Random seed (radio, sensor noise) [default: the scenario's].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    #[arg(long, value_enum, default_value = "native")]
+    pub firmware: FirmwareArg,
+    /// Also write a CSV trace: one row per robot per sample (docs/sim.md#the-trace).
+    #[arg(long, value_name = "FILE.csv")]
+    pub trace: Option<PathBuf>,
 }
 
-impl KeyArgs {
-    /// The fleet's master key from `--key-file`, `SWEEPER_KEY_FILE`, or
-    /// `SWEEPER_FLEET_KEY` (hex), if any.
-    pub fn load(&self) -> anyhow::Result<Option<MasterKey>> {
-        let Some(hex) = self.load_hex()? else {
-            return Ok(None);
-        };
-        Ok(Some(MasterKey::from_hex(&hex).context(self.source())?))
-    }
-
-    /// The key's text, zeroed when dropped.
-    pub fn load_hex(&self) -> anyhow::Result<Option<Zeroizing<String>>> {
-        if let Some(path) = &self.key_file {
-            return read_key_file(path).map(Some);
-        }
-        Ok(std::env::var("SWEEPER_FLEET_KEY").ok().map(Zeroizing::new))
-    }
-
-    fn source(&self) -> String {
-        match &self.key_file {
-            Some(path) => format!("key file {}", path.display()),
-            None => "SWEEPER_FLEET_KEY".into(),
-        }
-    }
-}
-
-/// The fleet's master key, or the one error every command that needs it gives.
-pub fn require_key(key: &KeyArgs) -> anyhow::Result<MasterKey> {
-    key.load()?.ok_or_else(|| {
-        anyhow::anyhow!(
-            "no fleet key: pass --key-file FILE or set SWEEPER_KEY_FILE or SWEEPER_FLEET_KEY \
-             (64 hex digits; make one with  (umask 077; openssl rand -hex 32 > fleet.key))"
-        )
-    })
-}
-
-/// Largest key file read: a key is 64 hex digits and a newline.
-const MAX_KEY_FILE: u64 = 1024;
-
-/// Reads a key file as ssh reads a private key: only if nobody but its owner can read it,
-/// and only if it is small enough to be one.
-pub fn read_key_file(path: &Path) -> anyhow::Result<Zeroizing<String>> {
-    use std::os::unix::fs::PermissionsExt;
-    let meta = std::fs::metadata(path)
-        .with_context(|| format!("cannot read the key file {}", path.display()))?;
-    if !meta.is_file() || meta.len() > MAX_KEY_FILE {
-        bail!(
-            "{} is not a key file ({} bytes; a key is 64 hex digits)",
-            path.display(),
-            meta.len()
-        );
-    }
-    let mode = meta.permissions().mode() & 0o777;
-    if mode & 0o077 != 0 {
-        bail!(
-            "the key file {} can be read by others (mode {mode:03o}): run  chmod 600 {}",
-            path.display(),
-            path.display()
-        );
-    }
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read the key file {}", path.display()))?;
-    Ok(Zeroizing::new(text))
+/// What a live run serves the operator (`run`, `sim --realtime`).
+#[derive(Args, Debug, Clone)]
+pub struct ServeArgs {
+    /// Serve the operator's console on ADDR [default: 127.0.0.1:8080]: the live map and
+    /// Stop / Emergency stop / Resume. Open the URL it prints (it carries the pairing code),
+    /// or enter the printed pairing code (docs/operating.md#7-stopping-and-the-console).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
+    pub console: Option<SocketAddr>,
+    /// Serve the run live over the Foxglove WebSocket protocol on ADDR [default:
+    /// 127.0.0.1:8765], read-only: the channels of a recording, for Foxglove or Lichtblick.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    pub live: Option<SocketAddr>,
+    /// A web page's origin allowed to open `--live` in a browser, beside Foxglove's and
+    /// Lichtblick's web apps (repeatable; clients that send no Origin always may).
+    #[arg(long, value_name = "ORIGIN", requires = "live")]
+    pub live_origin: Vec<String>,
 }

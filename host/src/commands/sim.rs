@@ -6,28 +6,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use clap::{Args, ValueEnum};
+use clap::Args;
 use hil_sim::recording::Recording;
 use hil_sim::report::Report;
 use hil_sim::run::simulate_with;
-use hil_sim::world::{Firmware, SimOptions};
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum FirmwareArg {
-    /// The control core compiled for this machine.
-    Native,
-    /// The real firmware ELF, one QEMU per robot.
-    Qemu,
-}
-
-impl From<FirmwareArg> for Firmware {
-    fn from(arg: FirmwareArg) -> Self {
-        match arg {
-            FirmwareArg::Native => Firmware::Native,
-            FirmwareArg::Qemu => Firmware::Qemu,
-        }
-    }
-}
+use hil_sim::world::SimOptions;
 
 #[derive(Args, Debug)]
 pub struct SimArgs {
@@ -44,30 +27,14 @@ pub struct SimArgs {
     /// out/SCENARIO.mcap] (docs/sim.md#the-recording).
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<PathBuf>,
-    /// Also write a CSV trace: one row per robot per sample (docs/sim.md#the-trace).
-    #[arg(long, value_name = "FILE.csv")]
-    pub trace: Option<PathBuf>,
-    /// Random seed (radio, sensor noise) [default: the scenario's].
-    #[arg(long)]
-    pub seed: Option<u64>,
-    #[arg(long, value_enum, default_value = "native")]
-    pub firmware: FirmwareArg,
     /// Run no faster than the wall clock.
     #[arg(long)]
     pub realtime: bool,
-    /// Serve the operator's console on ADDR [default: 127.0.0.1:8080] (needs `--realtime`;
-    /// any address but the loopback needs the token printed at start; docs/operating.md).
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080", requires = "realtime")]
-    pub console: Option<std::net::SocketAddr>,
-    /// Serve the run live over the Foxglove WebSocket protocol on ADDR [default:
-    /// 127.0.0.1:8765] (needs `--realtime`): the channels `run --live` serves, on the
-    /// simulated clock.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765", requires = "realtime")]
-    pub live: Option<std::net::SocketAddr>,
-    /// A web page's origin allowed to open `--live` in a browser, beside Foxglove's and
-    /// Lichtblick's web apps (repeatable; clients that send no Origin always may).
-    #[arg(long, value_name = "ORIGIN", requires = "live")]
-    pub live_origin: Vec<String>,
+    #[command(flatten)]
+    pub robots: super::SimulatedArgs,
+    /// With `--realtime`: the console and the live stream.
+    #[command(flatten)]
+    pub serve: super::ServeArgs,
     /// Inject a fault, as a TOML inline table with the fields of `[[faults]]`, e.g.
     /// `--fault '{ at_s = 30, kind = "loss_burst", duration_s = 10 }'`. Repeatable.
     #[arg(long = "fault", value_name = "TABLE")]
@@ -86,6 +53,9 @@ fn parse_fault(text: &str) -> anyhow::Result<base_station::scenario::FaultSpec> 
 }
 
 pub fn run(args: SimArgs) -> anyhow::Result<()> {
+    if !args.realtime && (args.serve.console.is_some() || args.serve.live.is_some()) {
+        anyhow::bail!("--console and --live need --realtime (a run no faster than the wall clock)");
+    }
     let mut scenario = super::load_scenario(&args.scenario)?;
     for text in &args.faults {
         scenario.faults.push(parse_fault(text)?);
@@ -98,8 +68,8 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         anyhow::bail!("{}", lines.join("\n"));
     }
     let name = scenario.name.clone();
-    let mut options = SimOptions::new(args.seed.unwrap_or(scenario.sim.seed));
-    options.firmware = args.firmware.into();
+    let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
+    options.firmware = args.robots.firmware.into();
     options.realtime = args.realtime;
     // Simulated time on a terminal (stderr); nothing when stderr is not one (CI, pipes).
     let bar = indicatif::ProgressBar::new(1000);
@@ -108,12 +78,12 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
             .expect("a valid template")
             .progress_chars("=> "),
     );
-    let console = super::console::Console::open(args.console, &scenario)?;
-    let mut live = match args.live {
-        Some(addr) => Some(super::record::LiveRecording::create(
+    let console = crate::live::console::Console::open(args.serve.console, &scenario)?;
+    let mut live = match args.serve.live {
+        Some(addr) => Some(crate::live::recording::LiveRecording::create(
             None,
             Some(addr),
-            &args.live_origin,
+            &args.serve.live_origin,
             scenario.robots.iter().map(|r| r.id),
         )?),
         None => None,
@@ -144,7 +114,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
                 world.station.operator(command, now_ms);
             }
             if world.t_us.is_multiple_of(100_000) {
-                console.publish(&super::console::snapshot(&world.station, now_ms));
+                console.publish(&crate::live::console::snapshot(&world.station, now_ms));
             }
         }
         if let Some(live) = live.as_mut() {
@@ -171,16 +141,20 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     let plot_path = args
         .plot
         .unwrap_or_else(|| PathBuf::from(format!("out/{name}.svg")));
-    for p in [Some(&report_path), Some(&plot_path), args.trace.as_ref()]
-        .into_iter()
-        .flatten()
+    for p in [
+        Some(&report_path),
+        Some(&plot_path),
+        args.robots.trace.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
     {
         super::create_parent(p)?;
     }
     super::write_report(&report, &report_path)?;
     hil_sim::plot::write_svg(&world, &report, &plot_path)
         .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", plot_path.display()))?;
-    if let Some(path) = &args.trace {
+    if let Some(path) = &args.robots.trace {
         super::write_trace(&world, path)?;
     }
     let recording = match recording {

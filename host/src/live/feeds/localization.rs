@@ -23,7 +23,7 @@ use glam::DVec2;
 use protocol::MasterKey;
 use serde::Serialize;
 
-use super::feed::{AllowNet, Gate, GateCounts, GateTally};
+use super::gate::{AllowNet, Gate, GateCounts, GateTally};
 
 /// Longest input line taken, bytes (an NMEA sentence is at most 82).
 const MAX_LINE: usize = 1024;
@@ -314,20 +314,20 @@ fn spawn(
         let line = Line {
             source: index,
             text: text_of(bytes),
-            unix_ms: super::unix_ms().unwrap_or(0),
+            unix_ms: crate::commands::unix_ms().unwrap_or(0),
         };
-        super::feed::offer(&tx, line, &dropped)
+        super::gate::offer(&tx, line, &dropped)
     };
     match source.clone() {
         Source::Udp(addr) => {
             let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
-            super::feed::read_udp_records(socket, "localization", gate, send)?;
+            super::gate::read_udp_records(socket, "localization", gate, send)?;
         }
         Source::Tcp(addr) => {
             std::thread::spawn(move || loop {
                 match std::net::TcpStream::connect(&addr) {
                     Ok(stream) => {
-                        if !super::feed::read_stream_records(stream, &mut gate, &mut send) {
+                        if !super::gate::read_stream_records(stream, &mut gate, &mut send) {
                             return;
                         }
                         tracing::warn!(%addr, "localization source closed; reconnecting");
@@ -345,7 +345,7 @@ fn spawn(
                 .open()
                 .with_context(|| format!("cannot open {path}"))?;
             std::thread::spawn(move || {
-                super::feed::read_stream_records(port, &mut gate, &mut send);
+                super::gate::read_stream_records(port, &mut gate, &mut send);
                 tracing::warn!(%path, "localization source closed");
             });
         }
@@ -441,7 +441,7 @@ impl FixPublisher {
         let Some(socket) = &self.socket else {
             return;
         };
-        let clock_us = super::unix_ms().unwrap_or(0) * 1000;
+        let clock_us = crate::commands::unix_ms().unwrap_or(0) * 1000;
         let mut feed = String::new();
         for (robot, sample) in fixes {
             let fix = Fix {

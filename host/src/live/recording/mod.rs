@@ -6,6 +6,8 @@
 //! --live` serves the same. Timestamps: the caller's clock (the wall clock in `run`, the
 //! simulated one in `sim`).
 
+mod gate;
+
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::net::SocketAddr;
@@ -75,7 +77,7 @@ impl LiveRecording {
                     .start_blocking()
                     .context("cannot start the Foxglove server")?;
                 let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
-                let bound = super::live_gate::start(addr, inner, origins)?;
+                let bound = gate::start(addr, inner, origins)?;
                 eprintln!("live (Foxglove WebSocket): ws://{bound}");
                 Some(server)
             }

@@ -40,14 +40,14 @@ pub struct RobotConfigArgs {
     #[arg(long, default_value_t = 0, requires = "boot_log")]
     pub last_boot_count: u32,
     #[command(flatten)]
-    pub key: super::KeyArgs,
+    pub key: crate::key::KeyArgs,
 }
 
 pub fn run(args: RobotConfigArgs) -> anyhow::Result<()> {
     if args.id == u16::MAX {
         bail!("id 65535 is reserved");
     }
-    let master = super::require_key(&args.key)?;
+    let master = crate::key::require_key(&args.key)?;
     // The page holds the broadcast key and this robot's own key, never the master key.
     let page = ConfigPage::new(args.id, matches!(args.role, RoleArg::Leader), &master);
     let encoded = Zeroizing::new(page.encode());
