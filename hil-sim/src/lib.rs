@@ -5,13 +5,11 @@
 //! - [`radio`]: the byte pipe between nodes: latency, jitter, loss, corruption, baud;
 //! - [`brain`]: the control code a robot runs;
 //! - [`world`]: everything on one simulated clock;
-//! - [`link_health`]: each robot's link as the station sees it;
 //! - [`metrics`]: what a run measured; [`report`], [`plot`], [`trace`]: its report, figure
 //!   and CSV trace; [`run`]: one run, start to report.
 
 pub mod brain;
 pub mod faults;
-pub mod link_health;
 pub mod metrics;
 pub mod observer;
 pub mod plant;

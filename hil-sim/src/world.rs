@@ -266,7 +266,7 @@ pub struct World {
     /// Each route the station planned, when it was first seen (µs): for the recording.
     pub routes: Vec<(u64, Vec<DVec2>)>,
     /// Each robot's link health as the station saw it, once a second (µs): for the recording.
-    pub links: Vec<(u64, Vec<(u16, crate::link_health::LinkHealth)>)>,
+    pub links: Vec<(u64, Vec<(u16, base_station::recording::LinkHealth)>)>,
     /// The next route point the true leader has to pass (judging arrival without the
     /// station's planner).
     next_route_point: usize,
@@ -626,8 +626,10 @@ impl World {
                     }
                 }
                 if t.is_multiple_of(1_000_000) {
-                    self.links
-                        .push((t, crate::link_health::link_health(&self.station, base_ms)));
+                    self.links.push((
+                        t,
+                        base_station::recording::link_health(&self.station, base_ms),
+                    ));
                 }
             }
         }

@@ -7,6 +7,7 @@ pub mod localization;
 pub mod map;
 pub mod perception;
 pub mod planner;
+pub mod recording;
 pub mod scenario;
 pub mod seal;
 pub mod station;

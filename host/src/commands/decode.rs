@@ -127,7 +127,7 @@ fn decode_recording(file: std::fs::File, key: Option<&MasterKey>) -> anyhow::Res
         };
         let message = match mcap::parse_record(opcode, data).context("a damaged MCAP record")? {
             mcap::records::Record::Channel(c) => {
-                if c.topic == hil_sim::recording::RADIO_TOPIC {
+                if c.topic == base_station::recording::RADIO_TOPIC {
                     radio.insert(c.id);
                 }
                 continue;

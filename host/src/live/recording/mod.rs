@@ -16,14 +16,16 @@ use std::sync::Arc;
 use std::time::SystemTime;
 
 use anyhow::Context as _;
+use base_station::recording::{
+    events_channel, link_health, log_event, log_radio, pose, radio_channel, stamp, LinkHealth,
+    FRAME,
+};
 use base_station::station::BaseStation;
 use foxglove::messages::{Log, PoseInFrame};
 use foxglove::{
     Channel, Context, McapWriter, McapWriterHandle, RawChannel, WebSocketServer,
     WebSocketServerHandle,
 };
-use hil_sim::link_health::{link_health, LinkHealth};
-use hil_sim::recording::{events_channel, log_event, log_radio, pose, radio_channel, stamp, FRAME};
 
 pub struct LiveRecording {
     _ctx: Arc<Context>,

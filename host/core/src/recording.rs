@@ -1,0 +1,256 @@
+//! The recording's vocabulary, shared by a simulation's recording (`hil-sim`) and a real
+//! run's (`basestation run --mcap` / `--live`), so that one Foxglove layout serves both
+//! and `decode` reads either: the site frame, the topics and their schemas, the scene's
+//! entities, and how a message is stamped.
+//!
+//! Topics: `/radio` (the bytes every node put on the air, JSON `from` + `hex`), `/events`
+//! (the station's events as log lines), `/tf` (each robot's frame in the site frame),
+//! `/robot_N/link` ([`LinkHealth`] once a second), and the scene and per-robot channels a
+//! recording writes with the entities and messages below.
+
+use std::sync::Arc;
+
+use foxglove::messages::{
+    line_primitive, log, ArrowPrimitive, Color, CylinderPrimitive, LinePrimitive, Log, Point3,
+    Pose, Quaternion, SceneEntity, Timestamp, Vector3,
+};
+use foxglove::{Channel, Context, PartialMetadata, RawChannel, Schema};
+
+use crate::geometry::Obstacle;
+
+/// The frame every position is in: the site's metric frame.
+pub const FRAME: &str = "site";
+
+/// The formation's shape when it changes: `wide`, `to_line`, `line`, `to_wide`.
+#[derive(foxglove::Encode)]
+pub struct FormationShape {
+    pub shape: String,
+}
+
+/// What a robot's state channel carries (plottable in Foxglove's Plot panel).
+#[derive(foxglove::Encode)]
+pub struct RobotState {
+    /// Forward speed, m/s.
+    pub v: f64,
+    /// Turn rate, rad/s.
+    pub omega: f64,
+    /// Distance from the follower's control point to its slot, m (−1: not a follower).
+    pub tracking_error: f64,
+    /// The formation's blend, 0 wide … 1 line.
+    pub blend: f64,
+}
+
+/// The radio channel's topic and the JSON schema of its messages: `from` (`base`,
+/// `robot:N`, `attacker`) and `hex` (the bytes it put on the air, frames with their
+/// delimiters).
+pub const RADIO_TOPIC: &str = "/radio";
+pub const RADIO_SCHEMA: &str = r#"{"type":"object","properties":{"from":{"type":"string"},"hex":{"type":"string"}},"required":["from","hex"]}"#;
+
+/// The base station's events, as log messages.
+pub const EVENTS_TOPIC: &str = "/events";
+
+/// The radio channel (raw JSON messages) on `ctx`.
+pub fn radio_channel(ctx: &Arc<Context>) -> Result<Arc<RawChannel>, String> {
+    ctx.channel_builder(RADIO_TOPIC)
+        .message_encoding("json")
+        .schema(Schema::new(
+            "RadioBytes",
+            "jsonschema",
+            RADIO_SCHEMA.as_bytes(),
+        ))
+        .build_raw()
+        .map_err(|e| format!("the radio channel: {e}"))
+}
+
+/// Logs what `from` put on the air at `t_ns`.
+pub fn log_radio(channel: &RawChannel, from: &str, bytes: &[u8], t_ns: u64) {
+    // Written directly (no JSON value in between: this is the busiest channel); `from`
+    // is a sender's name, never anything that needs escaping.
+    let mut message = Vec::with_capacity(24 + from.len() + 2 * bytes.len());
+    message.extend_from_slice(br#"{"from":""#);
+    message.extend_from_slice(from.as_bytes());
+    message.extend_from_slice(br#"","hex":""#);
+    let start = message.len();
+    message.resize(start + 2 * bytes.len(), 0);
+    let _ = hex::encode_to_slice(bytes, &mut message[start..]);
+    message.extend_from_slice(br#""}"#);
+    channel.log_with_meta(
+        &message,
+        PartialMetadata {
+            log_time: Some(t_ns),
+        },
+    );
+}
+
+/// The events channel on `ctx`.
+pub fn events_channel(ctx: &Arc<Context>) -> Channel<Log> {
+    ctx.channel_builder(EVENTS_TOPIC).build::<Log>()
+}
+
+/// Logs one station event (its report name, and its robot if any) at `t_ns`.
+pub fn log_event(channel: &Channel<Log>, event: &str, robot: Option<u16>, t_ns: u64) {
+    let message = match robot {
+        Some(id) => format!("{event} (robot {id})"),
+        None => event.to_string(),
+    };
+    channel.log_with_time(
+        &Log {
+            timestamp: stamp(t_ns),
+            level: log::Level::Info as i32,
+            message,
+            name: "base station".into(),
+            ..Default::default()
+        },
+        t_ns,
+    );
+}
+
+/// A message's own timestamp, from nanoseconds.
+pub fn stamp(t_ns: u64) -> Option<Timestamp> {
+    Some(Timestamp::new(
+        (t_ns / 1_000_000_000) as u32,
+        (t_ns % 1_000_000_000) as u32,
+    ))
+}
+
+pub fn point(x: f64, y: f64) -> Point3 {
+    Point3 { x, y, z: 0.0 }
+}
+
+/// A pose in the plane at height `z`, turned by `heading` about the vertical.
+pub fn pose(x: f64, y: f64, z: f64, heading: f64) -> Option<Pose> {
+    Some(Pose {
+        position: Some(Vector3 { x, y, z }),
+        orientation: Some(turned(heading)),
+    })
+}
+
+/// A turn by `heading` about the vertical.
+pub fn turned(heading: f64) -> Quaternion {
+    let h = 0.5 * heading;
+    Quaternion {
+        x: 0.0,
+        y: 0.0,
+        z: h.sin(),
+        w: h.cos(),
+    }
+}
+
+pub fn color(r: f64, g: f64, b: f64) -> Option<Color> {
+    Some(Color { r, g, b, a: 1.0 })
+}
+
+/// The site's obstacles: circles as 1 m cylinders, segments and polygons as lines.
+pub fn map_entity(obstacles: &[Obstacle]) -> SceneEntity {
+    let grey = color(0.45, 0.45, 0.5);
+    let mut e = SceneEntity {
+        frame_id: FRAME.into(),
+        id: "map".into(),
+        ..Default::default()
+    };
+    for o in obstacles {
+        match o {
+            Obstacle::Circle { center, radius } => e.cylinders.push(CylinderPrimitive {
+                pose: pose(center.x, center.y, 0.5, 0.0),
+                size: Some(Vector3 {
+                    x: 2.0 * radius,
+                    y: 2.0 * radius,
+                    z: 1.0,
+                }),
+                bottom_scale: 1.0,
+                top_scale: 1.0,
+                color: grey,
+            }),
+            Obstacle::Segment { a, b } => e.lines.push(LinePrimitive {
+                r#type: line_primitive::Type::LineStrip as i32,
+                thickness: 0.1,
+                points: vec![point(a.x, a.y), point(b.x, b.y)],
+                color: grey,
+                ..Default::default()
+            }),
+            Obstacle::Polygon { points } => e.lines.push(LinePrimitive {
+                r#type: line_primitive::Type::LineLoop as i32,
+                thickness: 0.1,
+                points: points.iter().map(|p| point(p.x, p.y)).collect(),
+                color: grey,
+                ..Default::default()
+            }),
+        }
+    }
+    e
+}
+
+/// Each robot's frame in the site frame, every sample.
+pub const TF_TOPIC: &str = "/tf";
+
+/// A robot's body in its own frame (`robot_N`), drawn once and moved by `/tf`: its
+/// footprint (leader orange, followers blue) and a heading arrow.
+pub fn robot_entity(id: u16, leads: bool, footprint: f64) -> SceneEntity {
+    let hue = if leads {
+        color(0.85, 0.3, 0.1)
+    } else {
+        color(0.1, 0.45, 0.85)
+    };
+    SceneEntity {
+        frame_id: format!("robot_{id}"),
+        id: format!("robot_{id}"),
+        frame_locked: true,
+        cylinders: vec![CylinderPrimitive {
+            pose: pose(0.0, 0.0, 0.15, 0.0),
+            size: Some(Vector3 {
+                x: 2.0 * footprint,
+                y: 2.0 * footprint,
+                z: 0.3,
+            }),
+            bottom_scale: 1.0,
+            top_scale: 1.0,
+            color: hue,
+        }],
+        arrows: vec![ArrowPrimitive {
+            pose: pose(0.0, 0.0, 0.35, 0.0),
+            shaft_length: footprint,
+            shaft_diameter: 0.06,
+            head_length: 0.15,
+            head_diameter: 0.15,
+            color: color(1.0, 1.0, 1.0),
+        }],
+        ..Default::default()
+    }
+}
+
+/// One robot's link as the base station sees it (`/robot_N/link`, plottable).
+#[derive(foxglove::Encode, Debug, Clone, Copy, PartialEq)]
+pub struct LinkHealth {
+    pub linked: bool,
+    /// Since the robot was last heard, ms (−1: never).
+    pub last_heard_ms: i64,
+    pub accepted: u32,
+    pub lost: u32,
+    pub rejected: u32,
+}
+
+/// Each robot's link health at the station's clock `now_ms`.
+pub fn link_health(station: &crate::station::BaseStation, now_ms: u32) -> Vec<(u16, LinkHealth)> {
+    station
+        .link()
+        .peers()
+        .iter()
+        .filter_map(|peer| {
+            let protocol::Address::Robot(id) = peer.address else {
+                return None;
+            };
+            Some((
+                id,
+                LinkHealth {
+                    linked: peer.is_linked(),
+                    last_heard_ms: peer
+                        .last_rx_ms
+                        .map_or(-1, |r| now_ms.wrapping_sub(r) as i64),
+                    accepted: peer.accepted,
+                    lost: peer.lost,
+                    rejected: peer.rejects.total(),
+                },
+            ))
+        })
+        .collect()
+}
