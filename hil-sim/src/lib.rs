@@ -18,6 +18,7 @@ pub mod qemu;
 pub mod radio;
 pub mod recording;
 pub mod report;
+pub mod ring;
 pub mod run;
 pub mod scanner;
 pub mod trace;

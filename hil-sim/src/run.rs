@@ -47,8 +47,8 @@ pub fn report_of(world: &World, wall_time_s: f64) -> Report {
     let s = &world.scenario;
     let transformations = report::transformations(
         &world.recorder,
-        match &world.observer {
-            Some(observer) => observer.transformations(),
+        match &world.external {
+            Some(external) => external.observer.transformations(),
             None => world.station.formation().transformations(),
         },
         s.wide_name(),
@@ -65,7 +65,7 @@ pub fn report_of(world: &World, wall_time_s: f64) -> Report {
         time_to_goal_s: world.goal_time_s(),
     };
     let mut report = report::build_report(&world.recorder, &facts, transformations, link);
-    if world.observer.is_some() {
+    if world.external.is_some() {
         return report;
     }
     let leader = world.station.config().leader;

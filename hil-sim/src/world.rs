@@ -29,6 +29,7 @@ use crate::metrics::{FleetView, Recorder, StationView, Tracked};
 use crate::observer::AirObserver;
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
+use crate::ring;
 use crate::scanner::Scanner;
 
 /// Which control code runs in the robots.
@@ -254,60 +255,30 @@ pub struct World {
     base_epoch_us: u64,
     robot_cfg: RobotConfig,
     elf: std::path::PathBuf,
-    /// With an external base station: what it said on the air, for the recorder.
-    pub observer: Option<AirObserver>,
-    /// With an external base station: bytes that reached it, not yet taken.
-    base_inbox: Vec<u8>,
-    /// Published fixes not yet taken: (robot, fix stamped with the world's clock, ms).
-    published_fixes: Vec<(u16, PoseFixSample)>,
-    /// With an external base station: the leader's latest scan (hits on what the map does
-    /// not hold), not yet taken.
-    published_scan: Vec<DVec2>,
+    /// The base station when it is another process; `None`: `station` runs here.
+    pub external: Option<External>,
     /// Each route the station planned, when it was first seen (µs): for the recording.
     pub routes: Vec<(u64, Vec<DVec2>)>,
     /// Each robot's link health as the station saw it, once a second (µs): for the recording.
     pub links: Vec<(u64, Vec<(u16, base_station::recording::LinkHealth)>)>,
-    /// The next route point the true leader has to pass (judging arrival without the
-    /// station's planner).
-    next_route_point: usize,
 }
 
 const PERIOD_US: u64 = 100_000;
-/// How far the simulated ultrasonic ring sees beyond the footprint, m.
-const PROXIMITY_RANGE: f64 = 2.0;
-/// Grid cell for robot neighbour queries, m (≥ range + two footprints).
-const CELL: f64 = 3.0;
 
-/// How much wider a side than the footprint the corridor is in which an echo slows a
-/// robot, m: it also turns.
-const SIDE_MARGIN: f64 = 0.2;
-
-/// How far a footprint of radius `fp` can drive ahead before it touches an echo `echo`
-/// metres away on a beam `beam` radians off its heading: as far as a disc `SIDE_MARGIN`
-/// wider can, plus that margin (so straight ahead, `echo − fp`). `None` when the echo is
-/// beside the corridor that disc sweeps: a robot passing a bin or driving down an alley is
-/// not slowed by what it is not driving into (a 1.3 m alley's walls slowed the last
-/// follower and made it weave).
-fn free_ahead(echo: f64, beam: f64, fp: f64) -> Option<f64> {
-    let (ahead, aside) = (echo * beam.cos(), echo * beam.sin().abs());
-    let corridor = fp + SIDE_MARGIN;
-    (aside < corridor).then(|| ahead - (corridor * corridor - aside * aside).sqrt() + SIDE_MARGIN)
-}
-
-fn cell(x: f64, y: f64) -> (i64, i64) {
-    ((x / CELL).floor() as i64, (y / CELL).floor() as i64)
-}
-
-/// Distance along the unit ray to a circle, if it hits.
-fn ray_circle(o: DVec2, dir: DVec2, c: DVec2, r: f64) -> Option<f64> {
-    let oc = o - c;
-    let b = oc.dot(dir);
-    let disc = b * b - (oc.length_squared() - r * r);
-    if disc < 0.0 {
-        return None;
-    }
-    let t = -b - disc.sqrt();
-    (t >= 0.0).then_some(t)
+/// What the world keeps for a base station that is another process (`basestation
+/// robots`): what it said, as heard on the air (for the recorder), what reached it and
+/// what it is to be sent (fixes, scans), and how far along its route the true leader is
+/// (arrival is judged without its planner).
+pub struct External {
+    pub observer: AirObserver,
+    /// Bytes that reached it, not yet taken.
+    inbox: Vec<u8>,
+    /// Published fixes not yet taken: (robot, fix stamped with the world's clock, ms).
+    fixes: Vec<(u16, PoseFixSample)>,
+    /// The leader's latest scan (hits on what the map does not hold), not yet taken.
+    scan: Vec<DVec2>,
+    /// The next route point the true leader has to pass.
+    next_route_point: usize,
 }
 
 impl World {
@@ -394,12 +365,13 @@ impl World {
             robot_cfg: cfg,
             elf,
             loc_rng: ChaCha8Rng::seed_from_u64(master.random()),
-            observer: (options.base == BaseSide::External)
-                .then(|| AirObserver::new(scenario.formation_spec().transition_duration())),
-            base_inbox: Vec::new(),
-            published_fixes: Vec::new(),
-            published_scan: Vec::new(),
-            next_route_point: 0,
+            external: (options.base == BaseSide::External).then(|| External {
+                observer: AirObserver::new(scenario.formation_spec().transition_duration()),
+                inbox: Vec::new(),
+                fixes: Vec::new(),
+                scan: Vec::new(),
+                next_route_point: 0,
+            }),
             routes: Vec::new(),
             links: Vec::new(),
             map,
@@ -442,8 +414,8 @@ impl World {
         let bytes = &on_air[..];
         if !bytes.is_empty() {
             self.transmitted.push((self.t_us, from, bytes.to_vec()));
-            if let Some(observer) = &mut self.observer {
-                observer.overhear(from, bytes, t_s);
+            if let Some(external) = &mut self.external {
+                external.observer.overhear(from, bytes, t_s);
             }
         }
         let silenced = self.injector.silenced(from, t_s);
@@ -556,92 +528,109 @@ impl World {
         Ok(())
     }
 
-    /// One physics step of `step_us`.
+    /// One physics step of `step_us`, in its phases: faults and attacks, the radio's
+    /// arrivals, localization, the leader's scan and the base station, the robots'
+    /// control, the bodies, and what the recorder sees.
     pub fn step(&mut self, step_us: u64) -> Result<(), BrainError> {
         self.inject(step_us)?;
-        let t = self.t_us;
-        let now_ms = (t / 1000) as u32;
-        // The base station's own clock: since it (re)started.
-        let base_ms = self.base_ms();
+        self.deliver_arrivals();
+        self.localize(step_us);
+        if self.t_us.is_multiple_of(PERIOD_US) {
+            self.scan_and_station();
+        }
+        self.control(step_us)?;
+        self.move_bodies(step_us);
+        self.observe();
+        Ok(())
+    }
 
-        // Radio arrivals: the base station takes its bytes at once; each robot gets its
-        // own at its next step (this one, if it is booted).
-        let external = self.options.base == BaseSide::External;
-        for (to, bytes) in self.radio.arrivals(t) {
-            if to == 0 && external {
-                self.base_inbox.extend_from_slice(&bytes);
-            } else if to == 0 {
-                self.station.receive(&bytes, base_ms);
-            } else {
-                self.robots[to - 1].inbox.extend_from_slice(&bytes);
+    /// Radio arrivals: the base station takes its bytes at once; each robot gets its own
+    /// at its next step (this one, if it is booted).
+    fn deliver_arrivals(&mut self) {
+        let base_ms = self.base_ms();
+        for (to, bytes) in self.radio.arrivals(self.t_us) {
+            match (to, &mut self.external) {
+                (0, Some(external)) => external.inbox.extend_from_slice(&bytes),
+                (0, None) => self.station.receive(&bytes, base_ms),
+                _ => self.robots[to - 1].inbox.extend_from_slice(&bytes),
             }
         }
+    }
 
-        // Localization: a fix of every robot each period, delivered after its latency.
+    /// Localization: a fix of every robot each period, delivered after its latency (to the
+    /// robot's own receiver, or published for an external station to forward).
+    fn localize(&mut self, step_us: u64) {
+        let t = self.t_us;
         let loc = &self.scenario.localization;
         let fix_every = (1e6 / loc.rate_hz) as u64;
-        if t % fix_every < step_us {
-            let pos = Normal::new(0.0, loc.sigma_m.max(1e-12)).expect("σ ≥ 0");
-            let head =
-                Normal::new(0.0, loc.heading_sigma_deg.to_radians().max(1e-12)).expect("σ ≥ 0");
-            let arrive = t + (loc.latency_ms * 1000.0) as u64;
-            let t_s = t as f64 / 1e6;
-            for r in &mut self.robots {
-                let jump = self.injector.fix_offset(r.id, t_s);
-                let sample = PoseFixSample {
-                    pose: Pose::new(
-                        (r.body.x + jump + pos.sample(&mut self.loc_rng)) as f32,
-                        (r.body.y + pos.sample(&mut self.loc_rng)) as f32,
-                        (r.body.heading + head.sample(&mut self.loc_rng)) as f32,
-                    ),
-                    sigma: loc.sigma_m as f32,
-                    time_ms: now_ms,
-                };
-                match self.options.fixes {
-                    FixPath::Onboard => r.fixes.push_back((arrive, sample)),
-                    FixPath::Published => self.published_fixes.push((r.id, sample)),
-                }
+        if t % fix_every >= step_us {
+            return;
+        }
+        let pos = Normal::new(0.0, loc.sigma_m.max(1e-12)).expect("σ ≥ 0");
+        let head = Normal::new(0.0, loc.heading_sigma_deg.to_radians().max(1e-12)).expect("σ ≥ 0");
+        let arrive = t + (loc.latency_ms * 1000.0) as u64;
+        let t_s = t as f64 / 1e6;
+        let now_ms = (t / 1000) as u32;
+        for r in &mut self.robots {
+            let jump = self.injector.fix_offset(r.id, t_s);
+            let sample = PoseFixSample {
+                pose: Pose::new(
+                    (r.body.x + jump + pos.sample(&mut self.loc_rng)) as f32,
+                    (r.body.y + pos.sample(&mut self.loc_rng)) as f32,
+                    (r.body.heading + head.sample(&mut self.loc_rng)) as f32,
+                ),
+                sigma: loc.sigma_m as f32,
+                time_ms: now_ms,
+            };
+            match (self.options.fixes, &mut self.external) {
+                (FixPath::Onboard, _) => r.fixes.push_back((arrive, sample)),
+                (FixPath::Published, Some(external)) => external.fixes.push((r.id, sample)),
+                (FixPath::Published, None) => {}
             }
         }
+    }
 
-        // At 10 Hz the leader scans: for the external station to take, or into ours,
-        // which then steps.
-        if t.is_multiple_of(PERIOD_US) {
-            let hits = self
-                .leader_position()
-                .map(|at| self.scanner.scan(at, &self.map))
-                .unwrap_or_default();
-            if external {
-                self.published_scan = hits;
-            } else {
-                if !hits.is_empty() {
-                    self.station.sense(&hits, base_ms);
-                }
-                self.station.step(base_ms);
-                let out = self.station.take_outbox();
-                self.transmit(0, &out);
-                if let Some(route) = self.station.route() {
-                    if self.routes.last().is_none_or(|(_, r)| *r != route.points) {
-                        self.routes.push((t, route.points.clone()));
-                    }
-                }
-                if t.is_multiple_of(1_000_000) {
-                    self.links.push((
-                        t,
-                        base_station::recording::link_health(&self.station, base_ms),
-                    ));
-                }
+    /// At 10 Hz the leader scans: for the external station to take, or into ours, which
+    /// then steps and transmits.
+    fn scan_and_station(&mut self) {
+        let (t, base_ms) = (self.t_us, self.base_ms());
+        let hits = self
+            .leader_position()
+            .map(|at| self.scanner.scan(at, &self.map))
+            .unwrap_or_default();
+        if let Some(external) = &mut self.external {
+            external.scan = hits;
+            return;
+        }
+        if !hits.is_empty() {
+            self.station.sense(&hits, base_ms);
+        }
+        self.station.step(base_ms);
+        let out = self.station.take_outbox();
+        self.transmit(0, &out);
+        if let Some(route) = self.station.route() {
+            if self.routes.last().is_none_or(|(_, r)| *r != route.points) {
+                self.routes.push((t, route.points.clone()));
             }
         }
+        if t.is_multiple_of(1_000_000) {
+            self.links.push((
+                t,
+                base_station::recording::link_health(&self.station, base_ms),
+            ));
+        }
+    }
 
-        // Robots: each boots at its phase and runs a control period every 100 ms of its
-        // own clock after that. The radio bytes that reached it are handed over in the
-        // physics step they arrive in (a step without sensors between periods), as the
-        // firmware's radio task takes them as they come. Until 2026-12-01 `sim` handed them
-        // over at the next period: a handshake answered just after one then measured its
-        // round trip a period too long, and the robot's clock offset came out up to half a
-        // period off behind a real transport (`basestation robots`, which took them on
-        // arrival; the two now run the same).
+    /// Robots: each boots at its phase and runs a control period every 100 ms of its own
+    /// clock after that. The radio bytes that reached it are handed over in the physics
+    /// step they arrive in (a step without sensors between periods), as the firmware's
+    /// radio task takes them as they come. Until 2026-12-01 `sim` handed them over at the
+    /// next period: a handshake answered just after one then measured its round trip a
+    /// period too long, and the robot's clock offset came out up to half a period off
+    /// behind a real transport (`basestation robots`, which took them on arrival; the two
+    /// now run the same).
+    fn control(&mut self, step_us: u64) -> Result<(), BrainError> {
+        let t = self.t_us;
         let due: Vec<bool> = self
             .robots
             .iter()
@@ -652,25 +641,19 @@ impl World {
             .iter()
             .map(|r| t >= r.phase_us && !r.inbox.is_empty())
             .collect();
-        let grid = due.iter().any(|d| *d).then(|| self.robot_grid());
+        let neighbours = due.iter().any(|d| *d).then(|| {
+            ring::Neighbours::new(
+                self.robots
+                    .iter()
+                    .map(|r| DVec2::new(r.body.x, r.body.y))
+                    .collect(),
+            )
+        });
         let mut stepping = Vec::new();
         for i in (0..self.robots.len()).filter(|i| due[*i] || hearing[*i]) {
             let sensors = due[i].then(|| {
-                let proximity = self.proximity(i, grid.as_ref().expect("built when due"));
-                let r = &mut self.robots[i];
-                let mut newest = None;
-                while r.fixes.front().is_some_and(|(at, _)| *at <= t) {
-                    newest = r.fixes.pop_front().map(|f| f.1);
-                }
-                let phase_ms = (r.phase_us / 1000) as u32;
-                Sensors {
-                    ticks: r.body.ticks(),
-                    pose_fix: newest.map(|f| PoseFixSample {
-                        time_ms: f.time_ms.wrapping_sub(phase_ms),
-                        ..f
-                    }),
-                    proximity,
-                }
+                let neighbours = neighbours.as_ref().expect("built when due");
+                self.sensors(i, neighbours)
             });
             let r = &mut self.robots[i];
             let inbox = std::mem::take(&mut r.inbox);
@@ -685,14 +668,48 @@ impl World {
             }
             self.transmit(i + 1, &tx);
         }
+        Ok(())
+    }
 
-        // Bodies.
+    /// What robot `i`'s board reads this period: encoders, the newest fix that has
+    /// arrived, the ring.
+    fn sensors(&mut self, i: usize, neighbours: &ring::Neighbours) -> Sensors {
+        let t = self.t_us;
+        let body = &self.robots[i].body;
+        let proximity = ring::sense(
+            i,
+            body.heading,
+            body.params.footprint,
+            &self.map,
+            neighbours,
+        );
+        let r = &mut self.robots[i];
+        let mut newest = None;
+        while r.fixes.front().is_some_and(|(at, _)| *at <= t) {
+            newest = r.fixes.pop_front().map(|f| f.1);
+        }
+        let phase_ms = (r.phase_us / 1000) as u32;
+        Sensors {
+            ticks: r.body.ticks(),
+            pose_fix: newest.map(|f| PoseFixSample {
+                time_ms: f.time_ms.wrapping_sub(phase_ms),
+                ..f
+            }),
+            proximity,
+        }
+    }
+
+    /// The bodies move under their motors' duties.
+    fn move_bodies(&mut self, step_us: u64) {
         let dt = step_us as f64 / 1e6;
         for r in &mut self.robots {
             r.body.step(&r.duty, dt);
         }
         self.t_us += step_us;
+    }
 
+    /// Whether the goal is reached, and what the recorder sees now.
+    fn observe(&mut self) {
         if self.goal_at_us.is_none() && self.arrived() {
             self.goal_at_us = Some(self.t_us);
         }
@@ -700,27 +717,26 @@ impl World {
             station: &self.station,
             epoch_us: self.base_epoch_us,
         };
-        let view: &dyn FleetView = match &self.observer {
-            Some(observer) => observer,
+        let view: &dyn FleetView = match &self.external {
+            Some(external) => &external.observer,
             None => &station,
         };
         self.recorder
             .observe(self.t_us, &self.robots, &self.map, view);
-        Ok(())
     }
 
     /// Whether the leader has arrived: the station's planner says so, or, with an
     /// external station, the true leader has passed every route point in order.
     fn arrived(&mut self) -> bool {
-        if self.observer.is_none() {
-            return self.station.arrived();
-        }
-        let route = self.scenario.route.points();
         let Some(at) = self.leader_position() else {
-            return false;
+            return self.external.is_none() && self.station.arrived();
         };
-        while let Some(p) = route.get(self.next_route_point) {
-            let last = self.next_route_point + 1 == route.len();
+        let Some(external) = &mut self.external else {
+            return self.station.arrived();
+        };
+        let route = self.scenario.route.points();
+        while let Some(p) = route.get(external.next_route_point) {
+            let last = external.next_route_point + 1 == route.len();
             let tol = if last {
                 self.scenario.route.arrival_tolerance
             } else {
@@ -729,9 +745,9 @@ impl World {
             if (*p - at).length() > tol {
                 break;
             }
-            self.next_route_point += 1;
+            external.next_route_point += 1;
         }
-        !route.is_empty() && self.next_route_point == route.len()
+        !route.is_empty() && external.next_route_point == route.len()
     }
 
     /// An external base station's bytes, put on the air now.
@@ -741,67 +757,26 @@ impl World {
 
     /// What reached an external base station over the air since the last call.
     pub fn take_base_inbox(&mut self) -> Vec<u8> {
-        std::mem::take(&mut self.base_inbox)
+        self.external
+            .as_mut()
+            .map(|e| std::mem::take(&mut e.inbox))
+            .unwrap_or_default()
     }
 
     /// The leader's latest scan (site frame), once; empty when it saw nothing unmapped.
     pub fn take_scan(&mut self) -> Vec<DVec2> {
-        std::mem::take(&mut self.published_scan)
+        self.external
+            .as_mut()
+            .map(|e| std::mem::take(&mut e.scan))
+            .unwrap_or_default()
     }
 
     /// Fixes published since the last call: (robot, fix stamped with the world's clock).
     pub fn take_published_fixes(&mut self) -> Vec<(u16, PoseFixSample)> {
-        std::mem::take(&mut self.published_fixes)
-    }
-
-    /// Robots by grid cell, for neighbour queries.
-    fn robot_grid(&self) -> HashMap<(i64, i64), Vec<usize>> {
-        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-        for (i, r) in self.robots.iter().enumerate() {
-            grid.entry(cell(r.body.x, r.body.y)).or_default().push(i);
-        }
-        grid
-    }
-
-    /// The ultrasonic ring of robot `i` as its board reports it: how far the footprint can
-    /// drive ahead (behind) before it touches what a transducer sees (five beams over
-    /// ±40°, range `PROXIMITY_RANGE` beyond the footprint; [`free_ahead`]), obstacles and
-    /// other robots.
-    fn proximity(&self, i: usize, grid: &HashMap<(i64, i64), Vec<usize>>) -> [Option<f32>; 2] {
-        let body = &self.robots[i].body;
-        let fp = body.params.footprint;
-        let p = DVec2::new(body.x, body.y);
-        let reach = PROXIMITY_RANGE + fp;
-        let (cx, cy) = cell(body.x, body.y);
-        let neighbours: Vec<DVec2> = (-1..=1)
-            .flat_map(|dx| (-1..=1).map(move |dy| (cx + dx, cy + dy)))
-            .filter_map(|c| grid.get(&c))
-            .flatten()
-            .filter(|j| **j != i)
-            .map(|j| DVec2::new(self.robots[*j].body.x, self.robots[*j].body.y))
-            .collect();
-        let sense = |base: f64| {
-            let free = [-40f64, -20.0, 0.0, 20.0, 40.0]
-                .iter()
-                .filter_map(|deg| {
-                    let a = base + deg.to_radians();
-                    let dir = DVec2::new(a.cos(), a.sin());
-                    let wall = self.map.ray_cast(p, dir, reach);
-                    let echo = neighbours
-                        .iter()
-                        .filter_map(|q| ray_circle(p, dir, *q, fp))
-                        .fold(wall, f64::min);
-                    (echo < reach)
-                        .then(|| free_ahead(echo, deg.to_radians(), fp))
-                        .flatten()
-                })
-                .fold(f64::INFINITY, f64::min);
-            (free < PROXIMITY_RANGE).then_some(free.max(0.0) as f32)
-        };
-        [
-            sense(body.heading),
-            sense(body.heading + std::f64::consts::PI),
-        ]
+        self.external
+            .as_mut()
+            .map(|e| std::mem::take(&mut e.fixes))
+            .unwrap_or_default()
     }
 
     /// The current base station's clock now, ms.
@@ -823,32 +798,5 @@ impl World {
             .iter()
             .find(|r| r.role == Role::Leader)
             .map(|r| DVec2::new(r.body.x, r.body.y))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_ring_counts_what_the_robot_drives_into() {
-        let fp = 0.3;
-        // Straight ahead: the gap in front of the footprint.
-        assert!((free_ahead(1.0, 0.0, fp).unwrap() - 0.7).abs() < 1e-12);
-        // A 1.3 m alley's wall, 0.65 m beside the centre, seen by the 40° beam: not in the way.
-        let wall = 0.65 / 40f64.to_radians().sin();
-        assert_eq!(free_ahead(wall, 40f64.to_radians(), fp), None);
-        assert_eq!(free_ahead(wall, -40f64.to_radians(), fp), None);
-        // Inside the corridor: the nearer the middle, the less room; never more than the
-        // footprint has before it touches the echo.
-        let at = |ahead: f64, aside: f64| {
-            free_ahead(ahead.hypot(aside), aside.atan2(ahead), fp).expect("in the corridor")
-        };
-        let room = [0.0, 0.1, 0.2, 0.29, 0.4, 0.49].map(|aside| at(1.0, aside));
-        assert!(room.windows(2).all(|w| w[0] < w[1]), "{room:?}");
-        for (aside, r) in [0.0, 0.1, 0.2, 0.29].iter().zip(room) {
-            let touches = 1.0 - (fp * fp - aside * aside).sqrt();
-            assert!(r <= touches + 1e-12, "{aside}: {r} > {touches}");
-        }
     }
 }
