@@ -54,17 +54,41 @@ pub fn abs(x: f32) -> f32 {
     F32(x).abs().0
 }
 
-/// Wraps an angle into (-π, π].
-pub fn wrap_angle(a: f32) -> f32 {
-    let mut w = a - TAU * floor((a + PI) / TAU);
-    if w <= -PI {
-        w += TAU;
-    }
-    if w > PI {
-        w -= TAU;
-    }
-    w
+/// Wraps an angle into (-π, π]: one body for the robot's `f32` and the base station's
+/// `f64` (they drifted apart once, the host's missing the `> π` case).
+macro_rules! wrap_angle {
+    ($(#[$meta:meta])* $name:ident, $t:ty, $pi:expr, $floor:expr) => {
+        $(#[$meta])*
+        pub fn $name(a: $t) -> $t {
+            let tau = 2.0 * $pi;
+            let mut w = a - tau * $floor((a + $pi) / tau);
+            if w <= -$pi {
+                w += tau;
+            }
+            if w > $pi {
+                w -= tau;
+            }
+            w
+        }
+    };
 }
+
+wrap_angle!(
+    /// Wraps an angle into (-π, π].
+    wrap_angle,
+    f32,
+    PI,
+    floor
+);
+
+#[cfg(feature = "std")]
+wrap_angle!(
+    /// [`wrap_angle`] in double precision, for the base station's planner.
+    wrap_angle_f64,
+    f64,
+    core::f64::consts::PI,
+    f64::floor
+);
 
 pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
     if x < lo {

@@ -3,16 +3,8 @@
 use glam::DVec2;
 use serde::Serialize;
 
-/// An angle in (−π, π].
-pub fn wrap_angle(a: f64) -> f64 {
-    let t = std::f64::consts::TAU;
-    let w = a - t * ((a + std::f64::consts::PI) / t).floor();
-    if w <= -std::f64::consts::PI {
-        w + t
-    } else {
-        w
-    }
-}
+/// An angle in (−π, π]: the control core's, in double precision.
+pub use control_core::math::wrap_angle_f64 as wrap_angle;
 
 /// A robot's pose in the site frame, as the planner and the formation manager see it.
 #[derive(Debug, Clone, Copy, PartialEq)]
