@@ -217,36 +217,47 @@ impl Trail {
         self.points.clear();
     }
 
-    /// The point `s` metres back along the path from the leader at `leader`. Beyond the
-    /// recorded path it goes on straight, along the chord from the leader to the oldest
-    /// point (stable against a wiggle at the start), or straight behind the leader when
-    /// less than half a metre is recorded.
+    /// The point `s` metres back along the path from the leader at `leader`
+    /// ([`behind_along`] the recorded path).
     pub fn behind(&self, leader: &Pose, s: f32) -> (f32, f32) {
-        let mut remaining = s;
-        let mut cur = (leader.x, leader.y);
-        for &(px, py) in self.points.iter().rev() {
-            let (dx, dy) = (px - cur.0, py - cur.1);
-            let seg = math::hypot(dx, dy);
-            if seg < 1e-6 {
-                continue;
-            }
-            if seg >= remaining {
-                let k = remaining / seg;
-                return (cur.0 + dx * k, cur.1 + dy * k);
-            }
-            remaining -= seg;
-            cur = (px, py);
-        }
-        let (cx, cy) = (cur.0 - leader.x, cur.1 - leader.y);
-        let chord = math::hypot(cx, cy);
-        let back = if s - remaining > 0.5 && chord > 0.25 {
-            (cx / chord, cy / chord)
-        } else {
-            let (sh, ch) = math::sin_cos(leader.heading);
-            (-ch, -sh)
-        };
-        (cur.0 + back.0 * remaining, cur.1 + back.1 * remaining)
+        behind_along(leader, self.points.iter().rev().copied(), s)
     }
+}
+
+/// The point `s` metres back along a path (`newest_first`) from the leader at `leader`.
+/// Beyond the path it goes on straight, along the chord from the leader to the path's
+/// start (stable against a wiggle at the start), or straight behind the leader when less
+/// than half a metre is recorded. The robot's trail and the base station's view of it use
+/// this one function.
+pub fn behind_along(
+    leader: &Pose,
+    newest_first: impl IntoIterator<Item = (f32, f32)>,
+    s: f32,
+) -> (f32, f32) {
+    let mut remaining = s;
+    let mut cur = (leader.x, leader.y);
+    for (px, py) in newest_first {
+        let (dx, dy) = (px - cur.0, py - cur.1);
+        let seg = math::hypot(dx, dy);
+        if seg < 1e-6 {
+            continue;
+        }
+        if seg >= remaining {
+            let k = remaining / seg;
+            return (cur.0 + dx * k, cur.1 + dy * k);
+        }
+        remaining -= seg;
+        cur = (px, py);
+    }
+    let (cx, cy) = (cur.0 - leader.x, cur.1 - leader.y);
+    let chord = math::hypot(cx, cy);
+    let back = if s - remaining > 0.5 && chord > 0.25 {
+        (cx / chord, cy / chord)
+    } else {
+        let (sh, ch) = math::sin_cos(leader.heading);
+        (-ch, -sh)
+    };
+    (cur.0 + back.0 * remaining, cur.1 + back.1 * remaining)
 }
 
 /// A follower's two slots, and the shape between them.

@@ -32,6 +32,8 @@
 //!   falls behind with its way to its reference clear (`lag_pace`); a follower held behind
 //!   an obstacle is not waited for.
 
+use control_core::follower::{self, LeaderSnapshot};
+use control_core::Pose;
 use glam::DVec2;
 
 use crate::geometry::PlanPose;
@@ -232,43 +234,39 @@ const LAG_WAY_MARGIN: f64 = 0.25;
 /// The paces a shape change may go at, fastest first (fractions of its nominal rate).
 const PACES: [f64; 6] = [1.0, 0.8, 0.6, 0.4, 0.2, 0.0];
 
-/// Where slot (L, φ) is with the leader at `leader`: rigid to its pose.
+/// The leader's pose as the control core takes it.
+fn core_pose(p: PlanPose) -> Pose {
+    Pose::new(p.position.x as f32, p.position.y as f32, p.heading as f32)
+}
+
+fn point((x, y): (f32, f32)) -> DVec2 {
+    DVec2::new(x as f64, y as f64)
+}
+
+/// Where slot (L, φ) is with the leader at `leader`: rigid to its pose, as the follower's
+/// control core puts it.
 fn slot_point(leader: PlanPose, (l, phi): (f64, f64)) -> DVec2 {
-    let a = leader.heading + phi;
-    leader.position + DVec2::new(a.cos(), a.sin()) * l
+    point(follower::slot_point(
+        &core_pose(leader),
+        l as f32,
+        phi as f32,
+    ))
 }
 
 /// The point `s` back along the path the leader drove (`newest_first`) from the leader at
-/// `leader` heading `heading`, as the control core's trail has it
-/// (`control_core::follower::Trail::behind`): before the path began, on along the chord
-/// from the leader to the path's start, or back along the heading while less than half a
-/// metre is recorded.
+/// `leader` heading `heading`, as the follower's control core has it
+/// ([`follower::behind_along`]: before the path began, on along the chord from the
+/// leader to the path's start, or back along the heading while less than half a metre is
+/// recorded).
 pub fn back_along(
     leader: DVec2,
     heading: f64,
     newest_first: impl IntoIterator<Item = DVec2>,
     s: f64,
 ) -> DVec2 {
-    let mut remaining = s;
-    let mut cur = leader;
-    for p in newest_first {
-        let seg = (p - cur).length();
-        if seg < 1e-9 {
-            continue;
-        }
-        if seg >= remaining {
-            return cur + (p - cur) * (remaining / seg);
-        }
-        remaining -= seg;
-        cur = p;
-    }
-    let chord = cur - leader;
-    let back = if s - remaining > 0.5 && chord.length() > 0.25 {
-        chord.normalize()
-    } else {
-        -DVec2::new(heading.cos(), heading.sin())
-    };
-    cur + back * remaining
+    let at = Pose::new(leader.x as f32, leader.y as f32, heading as f32);
+    let path = newest_first.into_iter().map(|p| (p.x as f32, p.y as f32));
+    point(follower::behind_along(&at, path, s as f32))
 }
 
 /// The two ends a follower's reference point moves between, as its control core makes
@@ -334,23 +332,18 @@ pub struct LeaderMotion {
 }
 
 impl LeaderMotion {
-    /// Where the leader is `t` seconds on, driving the same arc.
+    /// Where the leader is `t` seconds on, driving the same arc: the followers' own
+    /// prediction ([`LeaderSnapshot::predict`]).
     pub fn after(&self, t: f64) -> PlanPose {
-        let PlanPose { position, heading } = self.pose;
-        let turn = self.omega * t;
-        let shift = if turn.abs() < 1e-6 {
-            let mid = heading + 0.5 * turn;
-            DVec2::new(mid.cos(), mid.sin()) * (self.v * t)
-        } else {
-            let r = self.v / self.omega;
-            DVec2::new(
-                r * ((heading + turn).sin() - heading.sin()),
-                -r * ((heading + turn).cos() - heading.cos()),
-            )
+        let snapshot = LeaderSnapshot {
+            pose: core_pose(self.pose),
+            v: self.v as f32,
+            omega: self.omega as f32,
         };
+        let p = snapshot.predict(t as f32).pose;
         PlanPose {
-            position: position + shift,
-            heading: heading + turn,
+            position: point((p.x, p.y)),
+            heading: p.heading as f64,
         }
     }
 }

@@ -247,15 +247,17 @@ impl Fleet {
         let v = 0.5 * (vl + vr);
         let omega = (vr - vl) / self.track_width;
         let age = (now_ms.wrapping_sub(s.pose_at_ms) as f64 / 1000.0).clamp(0.0, 0.5);
-        let h0 = heading as f64;
-        let h1 = h0 + omega * age;
-        let mid = 0.5 * (h0 + h1);
-        let pos = DVec2::new(x as f64, y as f64) + DVec2::new(mid.cos(), mid.sin()) * v * age;
-        Some(LeaderEstimate {
+        // As a follower predicts the leader's state to now.
+        let motion = LeaderMotion {
             pose: PlanPose {
-                position: pos,
-                heading: h1,
+                position: DVec2::new(x as f64, y as f64),
+                heading: heading as f64,
             },
+            v,
+            omega,
+        };
+        Some(LeaderEstimate {
+            pose: motion.after(age),
             v,
             omega,
         })
