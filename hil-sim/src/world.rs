@@ -10,10 +10,8 @@ use base_station::scenario::{Role, Scenario};
 use base_station::station::{nonce_base, BaseStation, StationConfig};
 use control_core::config::{self, RobotConfig};
 use control_core::controller::{MotorOutput, Sensors};
-use control_core::kinematics::DiffDrive;
 use control_core::node::Identity;
 use control_core::odometry::PoseFixSample;
-use control_core::pid::PidGains;
 use control_core::Pose;
 use glam::DVec2;
 use protocol::body::BodyConfig;
@@ -106,42 +104,6 @@ impl SimOptions {
         self.key
             .clone()
             .unwrap_or_else(|| std::sync::Arc::new(sim_key(self.seed)))
-    }
-}
-
-/// The robot control configuration a scenario implies.
-pub fn robot_config(s: &Scenario) -> RobotConfig {
-    let r = &s.robot;
-    let d = RobotConfig::DEFAULT;
-    RobotConfig {
-        drive: DiffDrive {
-            track_width: r.track_width as f32,
-            wheel_radius: r.wheel_radius as f32,
-            max_wheel_speed: r.max_wheel_speed as f32,
-        },
-        ticks_per_rev: r.ticks_per_rev,
-        limits: config::Limits {
-            max_v: r.max_speed as f32,
-            max_reverse: r.max_reverse_speed as f32,
-            max_omega: r.max_turn_rate as f32,
-            max_accel: r.max_accel as f32,
-            brake_decel: r.brake_decel as f32,
-        },
-        gains: config::FollowerGains {
-            k1: s.follower.k1 as f32,
-            k2: s.follower.k2 as f32,
-            d: s.follower.d as f32,
-        },
-        pid: PidGains {
-            kff: 1.0 / r.motor_no_load_speed as f32,
-            ..d.pid
-        },
-        timeouts: config::Timeouts {
-            leader_state_ms: s.follower.leader_timeout_ms,
-            command_ms: s.follower.leader_timeout_ms,
-            ..d.timeouts
-        },
-        ..d
     }
 }
 
@@ -314,7 +276,7 @@ impl World {
             no_load_speed: r.motor_no_load_speed,
             dead_band: r.motor_dead_band,
         };
-        let cfg = robot_config(&scenario);
+        let cfg = scenario.robot_config();
         if options.firmware == Firmware::Qemu && cfg != RobotConfig::DEFAULT {
             return Err(BrainError(
                 "--firmware qemu: the firmware image carries the default robot parameters; \

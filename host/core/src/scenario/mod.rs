@@ -12,14 +12,12 @@ use std::path::Path;
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
-use crate::formation::{FormationSpec, WideShape};
 use crate::geometry::Obstacle;
-use crate::map::Map;
-use crate::planner::apf::ApfParams;
-use crate::planner::{Guidance, PlannerParams};
+use crate::planner::PlannerParams;
 
 mod defaults;
 mod locate;
+mod lower;
 mod reach;
 mod validate;
 
@@ -718,94 +716,6 @@ impl Scenario {
             .collect();
         f.sort_by_key(|r| r.id);
         f
-    }
-
-    /// The site map the base station holds: the obstacles, and the site's edge as four
-    /// walls.
-    pub fn build_map(&self) -> Map {
-        Map::new(self.map_obstacles())
-    }
-
-    /// The site as it is (what the simulated robots meet): the map and what it does not
-    /// hold (`map.unmapped`).
-    pub fn build_site(&self) -> Map {
-        let mut obstacles = self.map_obstacles();
-        obstacles.extend(self.map.unmapped.iter().map(ObstacleSpec::to_obstacle));
-        Map::new(obstacles)
-    }
-
-    fn map_obstacles(&self) -> Vec<Obstacle> {
-        let mut obstacles: Vec<Obstacle> = self
-            .map
-            .obstacles
-            .iter()
-            .map(ObstacleSpec::to_obstacle)
-            .collect();
-        if let Some(b) = self.map.bounds {
-            let (lo, hi) = (DVec2::from(b.min), DVec2::from(b.max));
-            let corners = [lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)];
-            for i in 0..4 {
-                obstacles.push(Obstacle::Segment {
-                    a: corners[i],
-                    b: corners[(i + 1) % 4],
-                });
-            }
-        }
-        obstacles
-    }
-
-    pub fn planner_params(&self) -> PlannerParams {
-        let p = &self.planner;
-        PlannerParams {
-            apf: ApfParams {
-                k_a: p.k_a,
-                k_r: p.k_r,
-                r_det: p.r_det,
-                attraction_saturation: p.attraction_saturation,
-                footprint: self.robot.footprint_radius,
-            },
-            max_speed: p.max_speed,
-            max_turn_rate: p.max_turn_rate,
-            max_accel: p.max_accel,
-            heading_gain: p.heading_gain,
-            turn_dead_band: p.turn_dead_band,
-            arrival_tolerance: self.route.arrival_tolerance,
-            waypoint_tolerance: self.route.waypoint_tolerance,
-            follow_clearance: p.follow_clearance,
-            guidance: match p.mode {
-                PlannerMode::Route => Guidance::Route,
-                PlannerMode::Apf => Guidance::Field,
-            },
-            ..PlannerParams::DEFAULT
-        }
-    }
-
-    pub fn formation_spec(&self) -> FormationSpec {
-        let f = &self.formation;
-        let wide = match f.shape {
-            ShapeName::Triangle | ShapeName::V => WideShape::V {
-                distance: f.distance,
-                angle: f.angle_deg.to_radians(),
-            },
-            ShapeName::Custom => WideShape::Custom(
-                f.slots
-                    .iter()
-                    .map(|s| (s.distance, s.angle_deg.to_radians()))
-                    .collect(),
-            ),
-        };
-        FormationSpec {
-            wide,
-            followers: self.followers().len(),
-            line_spacing: f.line_spacing,
-            margin: f.margin,
-            transition_s: f.transition_s,
-            min_dwell_s: f.min_dwell_s,
-            lookahead: f.lookahead,
-            footprint: self.robot.footprint_radius,
-            slot_speed: SLOT_SPEED_OF_MAX * self.robot.max_speed,
-            top_speed: self.robot.max_speed,
-        }
     }
 
     /// The wide shape's name in reports.
