@@ -12,18 +12,9 @@ use embassy_time::Instant;
 use protocol::FleetKey;
 use static_cell::StaticCell;
 
-/// Who this robot is: from the configuration page (see `docs/firmware.md`).
-#[derive(Clone, Copy)]
-pub struct Config {
-    pub id: u16,
-    pub leader: bool,
-    pub boot_count: u32,
-    /// Noise read at this boot, mixed with the MCU's unique id (see `node::Identity`).
-    pub entropy: u32,
-    /// The key of broadcast frames, and this robot's own key (`protocol::auth`).
-    pub broadcast_key: [u8; 32],
-    pub robot_key: [u8; 32],
-}
+/// Who this robot is: from the configuration page (`docs/firmware.md`) on the NUCLEO,
+/// from the simulated body's first message in QEMU. The wire's own type: one definition.
+pub use protocol::body::BodyConfig as Config;
 
 /// The node's storage, zeroed (`.bss`): an `Option<RobotNode>` in a static would put
 /// its ~2 KiB `None` image in flash.

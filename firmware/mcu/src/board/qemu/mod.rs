@@ -19,7 +19,7 @@ use embassy_executor::Spawner;
 use embassy_futures::yield_now;
 use protocol::body::{BodySensors, Done, FirmwareFault, FromMcu, ToMcu, MAX_RADIO_CHUNK};
 
-use crate::robot::{self, Config};
+use crate::robot;
 use link::Link;
 
 use defmt_semihosting as _;
@@ -112,14 +112,7 @@ pub async fn body_task(spawner: Spawner) {
             break c;
         }
     };
-    robot::configure(Config {
-        id: config.id,
-        leader: config.leader,
-        boot_count: config.boot_count,
-        entropy: config.entropy,
-        broadcast_key: config.broadcast_key,
-        robot_key: config.robot_key,
-    });
+    robot::configure(config);
     crate::tasks::start(spawner, radio::Rx, radio::Tx, Body);
     // The tasks start at boot time, before the first step moves the clock.
     while critical_section::with(|cs| NEXT_TICK_US.borrow(cs).get()) == u64::MAX {
