@@ -1,28 +1,7 @@
 //! Arbitrary bytes into the stream decoder and a linked receiver: nothing may panic, and
-//! nothing random may authenticate.
+//! nothing random may authenticate (the body: `fuzz/bodies/frame_decoder.rs`).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-use protocol::link::{Event, Link, Timing};
-use protocol::{Address, FleetKey, FrameDecoder};
+include!("../bodies/frame_decoder.rs");
 
-fuzz_target!(|data: &[u8]| {
-    let mut link: Link<2> = Link::new(
-        Address::Robot(1),
-        FleetKey::from_bytes(&[3; 32]),
-        1,
-        0,
-        Timing::default(),
-    );
-    link.add_peer(Address::Base, FleetKey::from_bytes(&[4; 32]));
-    let mut dec = FrameDecoder::new();
-    for (i, &b) in data.iter().enumerate() {
-        if let Some(frame) = dec.push(b) {
-            let r = link.receive(frame, i as u32);
-            assert!(!matches!(
-                r,
-                Ok(Event::Message { .. }) | Ok(Event::Linked { .. }) | Ok(Event::Synced { .. })
-            ));
-        }
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| frame_decoder(data));

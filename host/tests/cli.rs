@@ -4,13 +4,11 @@ mod common;
 
 use std::io::Write;
 use std::os::unix::fs::PermissionsExt;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
 fn basestation(args: &[&str], stdin: Option<&[u8]>) -> (i32, String, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_basestation"))
+    let mut child = common::basestation()
         .args(args)
-        .env_remove("SWEEPER_FLEET_KEY")
-        .env_remove("SWEEPER_KEY_FILE")
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -238,7 +236,7 @@ fn run_over_udp_challenges_every_robot() {
     let dir = std::env::temp_dir().join(format!("basestation-run-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let recording = dir.join("run.mcap");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_basestation"))
+    let mut child = common::basestation()
         .args([
             "run",
             "paper-obstacles",
@@ -304,7 +302,7 @@ fn robot_config_writes_a_page_the_firmware_accepts() {
     let dir = std::env::temp_dir().join(format!("basestation-cfg-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let page = dir.join("robot.cfg");
-    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
+    let out = common::basestation()
         .args(["robot-config", "--id", "3", "--role", "leader", "-o"])
         .arg(&page)
         .env("SWEEPER_FLEET_KEY", "ab".repeat(32))
@@ -331,7 +329,7 @@ fn robot_config_writes_a_page_the_firmware_accepts() {
 
     // Provisioning a replacement board: its boot counter continues above the old one's.
     let log = dir.join("robot.boot");
-    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
+    let out = common::basestation()
         .args(["robot-config", "--id", "3", "--role", "leader", "-o"])
         .arg(&page)
         .arg("--boot-log")

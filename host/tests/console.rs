@@ -20,8 +20,6 @@ use serde_json::{json, Value};
 
 use common::Killed;
 
-const BIN: &str = env!("CARGO_BIN_EXE_basestation");
-
 /// The paper's passage, cut to 24 s of simulated time.
 fn scenario(dir: &Path) -> PathBuf {
     let path = format!(
@@ -135,7 +133,7 @@ fn speeds(path: &Path) -> Vec<(f64, u64, f64)> {
 /// console's URL (with its pairing code), the report's and the trace's paths.
 fn start_sim(dir: &Path) -> (Killed, String, PathBuf, PathBuf) {
     let (report, trace) = (dir.join("report.json"), dir.join("trace.csv"));
-    let mut sim = Command::new(BIN)
+    let mut sim = common::basestation()
         .arg("sim")
         .arg(scenario(dir))
         .args(["--realtime", "--console", "127.0.0.1:0", "--report"])
@@ -231,14 +229,6 @@ fn open_browser(dir: &Path) -> Option<(Killed, Page)> {
     Some((browser, page))
 }
 
-/// A fresh scratch directory for test `name`.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// Waits for the run to end; its report.
 fn finished(mut sim: Killed, report: &Path) -> Value {
     let start = Instant::now();
@@ -261,7 +251,7 @@ fn event_at(r: &Value, name: &str) -> Option<f64> {
 
 #[test]
 fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
-    let dir = scratch("console-test");
+    let dir = common::scratch("console-test");
     let Some((_browser, mut page)) = open_browser(&dir) else {
         return;
     };
@@ -383,7 +373,7 @@ fn request(method: &str, path: &str, host: &str, headers: &[&str], body: &str) -
 /// pairing codes run out. What passes all that still drives the fleet.
 #[test]
 fn requests_from_other_names_origins_or_unpaired_are_refused() {
-    let dir = scratch("console-guard");
+    let dir = common::scratch("console-guard");
     let (sim, url, report, _) = start_sim(&dir);
     let (origin, code) = origin_and_code(&url);
     let host = origin.strip_prefix("http://").unwrap().to_string();
@@ -490,7 +480,7 @@ fn requests_from_other_names_origins_or_unpaired_are_refused() {
 /// `resume`. None gets through: the robots stay stopped to the end of the run.
 #[test]
 fn a_page_of_another_origin_cannot_resume_the_fleet() {
-    let dir = scratch("console-csrf");
+    let dir = common::scratch("console-csrf");
     let Some((_browser, mut page)) = open_browser(&dir) else {
         return;
     };

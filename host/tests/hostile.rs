@@ -5,16 +5,15 @@
 //! error naming its field (or a clean result), within 1 GB (`check`) and 256 MB (`decode`)
 //! of address space, and never a panic.
 
-use std::os::unix::process::CommandExt;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-const BIN: &str = env!("CARGO_BIN_EXE_basestation");
+use std::os::unix::process::CommandExt;
+use std::process::Output;
 
 /// Runs `basestation ARGS` with its address space limited to `mb` MiB.
 fn limited(mb: u64, args: &[&str]) -> Output {
-    let mut command = Command::new(BIN);
-    command.args(args).env_remove("SWEEPER_FLEET_KEY");
+    let mut command = common::basestation();
+    command.args(args);
     let bytes = mb << 20;
     // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
     unsafe {
@@ -24,13 +23,6 @@ fn limited(mb: u64, args: &[&str]) -> Output {
         });
     }
     command.output().unwrap()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// The paper's obstacle scenario without its bounds and obstacles, with `map` and `goal`.
@@ -53,7 +45,7 @@ fn site(map: &str, goal: &str) -> String {
 
 #[test]
 fn hostile_site_files_get_a_clear_error_within_a_gigabyte() {
-    let dir = scratch("hostile-sites");
+    let dir = common::scratch("hostile-sites");
     let circle = "{kind=\"circle\",center=[40,40],radius=0.2},";
     let big_circle = "{kind=\"circle\",center=[0,500000],radius=400000},";
     let cases: Vec<(&str, String, &str)> = vec![
@@ -142,18 +134,10 @@ fn xorshift(state: &mut u64) -> u64 {
 
 #[test]
 fn byte_flipped_recordings_decode_within_256_mb_without_a_crash() {
-    let dir = scratch("hostile-recordings");
-    let mcap = dir.join("run.mcap");
-    let sim = Command::new(BIN)
-        .args(["sim", "paper-passage", "--mcap"])
-        .arg(&mcap)
-        .arg("--report")
-        .arg(dir.join("r.json"))
-        .arg("--plot")
-        .arg(dir.join("r.svg"))
-        .output()
-        .unwrap();
+    let dir = common::scratch("hostile-recordings");
+    let (sim, _) = common::sim_into(&dir, "paper-passage", &[]);
     assert!(sim.status.success());
+    let mcap = dir.join("run.mcap");
     let clean = std::fs::read(&mcap).unwrap();
     let mut rng = 0x2545_f491_4f6c_dd1d_u64;
     let mut outcomes = [0; 2];

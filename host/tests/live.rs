@@ -5,7 +5,7 @@
 mod common;
 
 use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
@@ -18,7 +18,7 @@ use common::Killed;
 fn a_foxglove_client_receives_the_robots_poses_live() {
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("live-test");
     std::fs::create_dir_all(&dir).unwrap();
-    let mut sim = Command::new(env!("CARGO_BIN_EXE_basestation"))
+    let mut sim = common::basestation()
         .args([
             "sim",
             "paper-passage",

@@ -4,26 +4,13 @@
 mod common;
 
 use std::collections::BTreeMap;
-use std::process::Command;
 
 #[test]
 fn basestation_sim_writes_report_and_figure() {
-    let dir = std::env::temp_dir().join(format!("e2e-sim-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let report = dir.join("r.json");
-    let plot = dir.join("f.svg");
-    let recording = dir.join("run.mcap");
-    let status = Command::new(env!("CARGO_BIN_EXE_basestation"))
-        .args(["sim", "paper-passage", "--seed", "3"])
-        .arg("--report")
-        .arg(&report)
-        .arg("--plot")
-        .arg(&plot)
-        .arg("--mcap")
-        .arg(&recording)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let dir = common::scratch("e2e-sim");
+    let (out, report) = common::sim_into(&dir, "paper-passage", &["--seed", "3"]);
+    let (plot, recording) = (dir.join("figure.svg"), dir.join("run.mcap"));
+    assert!(out.status.success());
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     for key in [
@@ -212,24 +199,9 @@ fn assert_layout_fits(schemas: &BTreeMap<String, Vec<u8>>) {
 
 #[test]
 fn sim_takes_faults_on_the_command_line() {
-    let dir = std::env::temp_dir().join(format!("e2e-fault-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let report = dir.join("r.json");
-    let out = Command::new(env!("CARGO_BIN_EXE_basestation"))
-        .args([
-            "sim",
-            "paper-passage",
-            "--plot",
-            "/dev/null",
-            "--mcap",
-            "/dev/null",
-            "--fault",
-        ])
-        .arg(r#"{ at_s = 30, kind = "leader_dies" }"#)
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
+    let dir = common::scratch("e2e-fault");
+    let fault = r#"{ at_s = 30, kind = "leader_dies" }"#;
+    let (out, report) = common::sim_into(&dir, "paper-passage", &["--fault", fault]);
     assert!(
         out.status.success(),
         "{}",
@@ -246,7 +218,7 @@ fn sim_takes_faults_on_the_command_line() {
         .unwrap()
         .iter()
         .any(|e| e["event"] == "leader_lost"));
-    let bad = Command::new(env!("CARGO_BIN_EXE_basestation"))
+    let bad = common::basestation()
         .args(["sim", "--fault", r#"{ at_s = 1, kind = "melt" }"#])
         .output()
         .unwrap();

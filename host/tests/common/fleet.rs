@@ -4,12 +4,11 @@
 use std::io::BufRead;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-pub const BIN: &str = env!("CARGO_BIN_EXE_basestation");
 
 /// The fleet key of every scratch site.
 pub const KEY_HEX: &str = "5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a5a";
@@ -26,40 +25,7 @@ pub const FORWARDED_FIX_MARGIN_M: f64 = 0.10;
 /// The paper's passage, shortened for real-time tests: the same 3 m gap in a 2 m thick
 /// wall, the fleet starting 6 m before it, the goal 6 m after it; placed on the globe for
 /// NMEA, with tighter localization limits.
-pub const SHORT_PASSAGE: &str = r#"
-name = "short-passage"
-[map]
-bounds = { min = [-5.0, 0.0], max = [30.0, 20.0] }
-obstacles = [
-    { kind = "rectangle", min = [12.0, 0.0], max = [14.0, 8.5] },
-    { kind = "rectangle", min = [12.0, 11.5], max = [14.0, 20.0] },
-]
-[[robots]]
-id = 0
-role = "leader"
-start = { x = 6.0, y = 10.0, heading_deg = 0.0 }
-[[robots]]
-id = 1
-role = "follower"
-start = { x = 3.202, y = 11.5, heading_deg = 0.0 }
-[[robots]]
-id = 2
-role = "follower"
-start = { x = 3.202, y = 8.5, heading_deg = 0.0 }
-[formation]
-shape = "triangle"
-distance = 3.0
-angle_deg = 150.0
-line_spacing = 1.5
-[route]
-goal = [20.0, 10.0]
-[localization]
-origin = { lat_deg = 47.3769, lon_deg = 8.5417, x_axis_bearing_deg = 72.0 }
-lost_after_s = 1.0
-stop_after_s = 4.0
-[sim]
-duration_s = 60.0
-"#;
+pub const SHORT_PASSAGE: &str = include_str!("../fixtures/short-passage.toml");
 
 /// A scratch directory with the fleet key (mode 600) and the short passage.
 pub struct Site {
@@ -94,12 +60,10 @@ impl Drop for Process {
 
 impl Process {
     pub fn start(site: &Site, args: &[&str]) -> Self {
-        let child = Command::new(BIN)
+        let child = super::basestation()
             .args(args)
             .arg("--key-file")
             .arg(site.path("fleet.key"))
-            .env_remove("SWEEPER_FLEET_KEY")
-            .env_remove("RUST_LOG")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -186,16 +150,9 @@ pub fn follower_errors(report: &Value) -> Vec<(u64, f64)> {
 
 /// `sim` of the same scenario and seed: its report.
 pub fn sim_report(site: &Site, scenario: &str) -> Value {
-    let report = site.path("sim.json");
-    let out = Command::new(BIN)
-        .args(["sim", scenario, "--report"])
-        .arg(&report)
-        .arg("--plot")
-        .arg(site.path("sim.svg"))
-        .arg("--mcap")
-        .arg(site.path("sim.mcap"))
-        .output()
-        .unwrap();
+    let dir = site.path("sim");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (out, report) = super::sim_into(&dir, scenario, &[]);
     assert!(
         out.status.success(),
         "{}",
@@ -297,32 +254,4 @@ pub fn unix_us() -> u64 {
 
 /// A van parked across the way, not on the station's map (`[map] unmapped`: only the
 /// simulated site has it).
-pub const VAN_ON_THE_WAY: &str = r#"
-name = "van-on-the-way"
-[map]
-bounds = { min = [-5.0, 0.0], max = [35.0, 20.0] }
-obstacles = []
-unmapped = [
-    { kind = "rectangle", min = [14.0, 6.5], max = [16.0, 13.5] },
-]
-[[robots]]
-id = 0
-role = "leader"
-start = { x = 4.0, y = 10.0, heading_deg = 0.0 }
-[[robots]]
-id = 1
-role = "follower"
-start = { x = 1.202, y = 11.5, heading_deg = 0.0 }
-[[robots]]
-id = 2
-role = "follower"
-start = { x = 1.202, y = 8.5, heading_deg = 0.0 }
-[formation]
-shape = "triangle"
-distance = 3.0
-angle_deg = 150.0
-[route]
-goal = [26.0, 10.0]
-[sim]
-duration_s = 90.0
-"#;
+pub const VAN_ON_THE_WAY: &str = include_str!("../fixtures/van-on-the-way.toml");

@@ -3,8 +3,44 @@
 
 pub mod fleet;
 
-use std::path::Path;
-use std::process::{Child, Command};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output};
+
+/// `basestation`, with no fleet key and no log filter from the environment.
+pub fn basestation() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_basestation"));
+    command
+        .env_remove("SWEEPER_FLEET_KEY")
+        .env_remove("SWEEPER_KEY_FILE")
+        .env_remove("RUST_LOG");
+    command
+}
+
+/// A fresh scratch directory for test `name`.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `basestation sim SCENARIO ARGS…` with its report, figure and recording in `dir`
+/// (`report.json`, `figure.svg`, `run.mcap`): its output and the report's path.
+pub fn sim_into(dir: &Path, scenario: &str, args: &[&str]) -> (Output, PathBuf) {
+    let report = dir.join("report.json");
+    let out = basestation()
+        .args(["sim", scenario])
+        .args(args)
+        .arg("--report")
+        .arg(&report)
+        .arg("--plot")
+        .arg(dir.join("figure.svg"))
+        .arg("--mcap")
+        .arg(dir.join("run.mcap"))
+        .output()
+        .unwrap();
+    (out, report)
+}
 
 /// A child process killed when dropped (a failing test leaves nothing running).
 pub struct Killed(pub Child);
