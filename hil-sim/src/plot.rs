@@ -53,6 +53,7 @@ where
     Ok(())
 }
 
+/// A chart with two metric axes (time and a value, or x and y on the site).
 type TimeChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// A chart over the run's time with the given caption and y range.
@@ -86,22 +87,16 @@ pub fn write_svg(world: &World, report: &Report, path: &Path) -> PlotResult {
     Ok(())
 }
 
-fn trajectories<DB: DrawingBackend>(
-    world: &World,
-    report: &Report,
-    area: &DrawingArea<DB, plotters::coord::Shift>,
-) -> PlotResult
-where
-    DB::ErrorType: 'static,
-{
-    let rec = &world.recorder;
+/// The square (centre x, centre y, side) that holds the robots' paths, the obstacles and
+/// the goal, with a metre around.
+fn site_extent(world: &World) -> (f64, f64, f64) {
     let mut lo = (f64::INFINITY, f64::INFINITY);
     let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
     let mut grow = |x: f64, y: f64| {
         lo = (lo.0.min(x), lo.1.min(y));
         hi = (hi.0.max(x), hi.1.max(y));
     };
-    for s in &rec.samples {
+    for s in &world.recorder.samples {
         for r in &s.robots {
             grow(r.x, r.y);
         }
@@ -115,7 +110,18 @@ where
         grow(g.x, g.y);
     }
     let span = (hi.0 - lo.0).max(hi.1 - lo.1) + 2.0;
-    let (cx, cy) = ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0);
+    ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0, span)
+}
+
+fn trajectories<DB: DrawingBackend>(
+    world: &World,
+    report: &Report,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let (cx, cy, span) = site_extent(world);
     let title = format!(
         "{} ({}, seed {}): goal {}, {} collisions, min clearance {:.2} m",
         report.scenario,
@@ -143,7 +149,20 @@ where
         .x_desc("x (m)")
         .y_desc("y (m)")
         .draw()?;
+    draw_site(&mut chart, world)?;
+    draw_paths(&mut chart, world)?;
+    draw_snapshots(&mut chart, world)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)
+}
 
+/// The obstacles, the goal and the planned route.
+fn draw_site<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
     let grey = RGBColor(120, 120, 120);
     for o in world.map.obstacles() {
         match o {
@@ -179,6 +198,18 @@ where
             .label("planned route")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
     }
+    Ok(())
+}
+
+/// Each robot's path.
+fn draw_paths<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let rec = &world.recorder;
     for (i, robot) in world.robots.iter().enumerate() {
         let label = match robot.role {
             Role::Leader => format!("leader {}", robot.id),
@@ -194,9 +225,20 @@ where
                 PathElement::new([(x, y), (x + 16, y)], color(i).stroke_width(2))
             });
     }
-    // Formation snapshots every 10 s: the robots' footprints joined leader → followers.
+    Ok(())
+}
+
+/// Formation snapshots every 10 s: the robots' footprints joined leader → followers.
+fn draw_snapshots<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
     let leader = world.robots.iter().position(|r| r.role == Role::Leader);
-    for s in rec
+    for s in world
+        .recorder
         .samples
         .iter()
         .filter(|s| ((s.t * 10.0).round() as u64).is_multiple_of(100))
@@ -214,7 +256,7 @@ where
             chart.draw_series(LineSeries::new(circle(r.x, r.y, fp), color(i).mix(0.8)))?;
         }
     }
-    legend(&mut chart, SeriesLabelPosition::UpperLeft)
+    Ok(())
 }
 
 fn errors<DB: DrawingBackend>(

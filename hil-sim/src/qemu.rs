@@ -160,6 +160,59 @@ fn log_reader(
     });
 }
 
+/// A fresh working directory for robot `id`'s QEMU (unique per brain: several worlds may
+/// run in one process, tests in parallel) with its two lockstep FIFOs.
+fn lockstep_dir(id: u16) -> Result<(PathBuf, File, File), String> {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("sweeper-{}-{n}-{id}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let fifos =
+        fifo(&dir.join("lockstep.in")).and_then(|i| Ok((i, fifo(&dir.join("lockstep.out"))?)));
+    match fifos {
+        Ok((to_mcu, from_mcu)) => Ok((dir, to_mcu, from_mcu)),
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&dir);
+            Err(format!(
+                "cannot make the lockstep FIFOs in {}: {e}",
+                dir.display()
+            ))
+        }
+    }
+}
+
+/// QEMU on the mps2-an386 board with the firmware `elf`, in `dir`: semihosting for defmt
+/// on its standard output, deterministic instruction counting, killed with the harness.
+fn start_qemu(elf: &Path, dir: &Path) -> io::Result<std::process::Child> {
+    let mut cmd = Command::new("qemu-system-arm");
+    cmd.args([
+        "-M",
+        "mps2-an386",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        "null",
+    ])
+    .args(["-semihosting-config", "enable=on,target=native"])
+    .args(["-icount", "shift=5,align=off,sleep=off"])
+    .arg("-kernel")
+    .arg(elf)
+    .current_dir(dir)
+    .stdin(Stdio::null())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::inherit());
+    // SAFETY: prctl is async-signal-safe; QEMU dies with the harness.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+            Ok(())
+        });
+    }
+    cmd.spawn()
+}
+
 impl QemuBrain {
     /// Boots one robot's firmware and configures it (what its flash page holds).
     pub fn spawn(elf: &Path, config: BodyConfig, timeout: Duration) -> Result<Self, BrainError> {
@@ -172,50 +225,8 @@ impl QemuBrain {
             ))
         })?;
         let elf = std::fs::canonicalize(elf).map_err(|e| err(e.to_string()))?;
-        // Unique per brain: several worlds may run in one process (tests in parallel).
-        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("sweeper-{}-{n}-{id}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).map_err(|e| err(format!("{}: {e}", dir.display())))?;
-        let fifos =
-            fifo(&dir.join("lockstep.in")).and_then(|i| Ok((i, fifo(&dir.join("lockstep.out"))?)));
-        let (to_mcu, from_mcu) = match fifos {
-            Ok(f) => f,
-            Err(e) => {
-                let _ = std::fs::remove_dir_all(&dir);
-                return Err(err(format!(
-                    "cannot make the lockstep FIFOs in {}: {e}",
-                    dir.display()
-                )));
-            }
-        };
-        let mut cmd = Command::new("qemu-system-arm");
-        cmd.args([
-            "-M",
-            "mps2-an386",
-            "-nographic",
-            "-monitor",
-            "none",
-            "-serial",
-            "null",
-        ])
-        .args(["-semihosting-config", "enable=on,target=native"])
-        .args(["-icount", "shift=5,align=off,sleep=off"])
-        .arg("-kernel")
-        .arg(&elf)
-        .current_dir(&dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit());
-        // SAFETY: prctl is async-signal-safe; QEMU dies with the harness.
-        unsafe {
-            cmd.pre_exec(|| {
-                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
-                Ok(())
-            });
-        }
-        let mut child = match cmd.spawn() {
+        let (dir, to_mcu, from_mcu) = lockstep_dir(id).map_err(err)?;
+        let mut child = match start_qemu(&elf, &dir) {
             Ok(c) => c,
             Err(e) => {
                 let _ = std::fs::remove_dir_all(&dir);

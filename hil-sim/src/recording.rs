@@ -14,7 +14,7 @@ use std::sync::{mpsc, Arc};
 
 use foxglove::messages::{
     line_primitive, FrameTransform, FrameTransforms, LinePrimitive, Log, PoseInFrame, SceneEntity,
-    SceneUpdate, SpherePrimitive, Vector3,
+    SceneUpdate, Vector3,
 };
 use foxglove::{Channel, Context, McapWriteOptions, McapWriter, RawChannel};
 
@@ -355,16 +355,8 @@ impl Writer {
                 z: 0.0,
             });
             transform.rotation = Some(turned(sample.heading));
-            if let Some((sx, sy)) = sample.slot {
-                slots.spheres.push(SpherePrimitive {
-                    pose: pose(sx, sy, 0.05, 0.0),
-                    size: Some(Vector3 {
-                        x: 0.15,
-                        y: 0.15,
-                        z: 0.15,
-                    }),
-                    color: color(0.2, 0.8, 0.3),
-                });
+            if let Some(slot) = sample.slot {
+                slots.spheres.push(slot_marker(slot));
             }
             pose_msg.timestamp = stamp(t);
             pose_msg.pose = pose(sample.x, sample.y, 0.0, sample.heading);
@@ -395,16 +387,22 @@ impl Writer {
             t,
         );
         self.count("/robots");
-        if s.shape != self.shape {
-            self.shape = s.shape;
-            self.shapes.log_with_time(
-                &FormationShape {
-                    shape: s.shape.into(),
-                },
-                t,
-            );
-            self.count("/formation");
+        self.note_shape(s.shape, t);
+    }
+
+    /// The formation's shape, when it changed.
+    fn note_shape(&mut self, shape: &'static str, t: u64) {
+        if shape == self.shape {
+            return;
         }
+        self.shape = shape;
+        self.shapes.log_with_time(
+            &FormationShape {
+                shape: shape.into(),
+            },
+            t,
+        );
+        self.count("/formation");
     }
 
     /// A route the station planned at `t_us`: a blue line strip.

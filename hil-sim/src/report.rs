@@ -275,118 +275,14 @@ pub fn build_report(
             !e.is_empty() && e.iter().all(|e| *e < JOINED_BELOW_M)
         })
         .map(|s| s.t);
-    // A transformation is busy from its start until the slots are shaped and the
-    // followers back (or the blend's end if they never came back), plus 3 s.
-    let transition = scenario.formation_spec().transition_duration();
-    let busy: Vec<(f64, f64)> = transformations
-        .iter()
-        .map(|t| {
-            let shaped = t.shaped_s.unwrap_or(transition);
-            let end = t.start_s + shaped.max(t.duration_s.unwrap_or(0.0));
-            (t.start_s, end + 3.0)
-        })
-        .collect();
-    let in_busy = |t: f64| busy.iter().any(|(a, b)| t >= *a && t <= *b);
-    let spec = scenario.formation_spec();
-    let reach = spec
-        .wide_slots()
-        .into_iter()
-        .chain(spec.line_slots())
-        .map(|(l, _)| l)
-        .fold(0.0, f64::max);
-    let straight = match facts.roles.iter().position(|(_, r)| *r == Role::Leader) {
-        Some(leader) => straight_legs(&rec.samples, leader, reach),
-        None => vec![false; rec.samples.len()],
-    };
+    let judge = Judge::new(rec, facts, &transformations);
     let straight_leg_time_s =
-        straight.iter().filter(|s| **s).count() as f64 * SAMPLE_PERIOD_US as f64 / 1e6;
-    let moving_until = facts.time_to_goal_s.unwrap_or(facts.sim_time_s);
+        judge.straight.iter().filter(|s| **s).count() as f64 * SAMPLE_PERIOD_US as f64 / 1e6;
     let robots = facts
         .roles
         .iter()
         .enumerate()
-        .map(|(i, (id, role))| {
-            let moving: Vec<_> = rec
-                .samples
-                .iter()
-                .filter(|s| s.t <= moving_until)
-                .map(|s| &s.robots[i])
-                .collect();
-            let n = moving.len().max(1) as f64;
-            let mut report = RobotReport {
-                id: *id,
-                role: role.name().into(),
-                avg_speed_mps: moving.iter().map(|r| r.v.abs()).sum::<f64>() / n,
-                avg_abs_omega_radps: moving.iter().map(|r| r.omega.abs()).sum::<f64>() / n,
-                max_tracking_error_m: None,
-                stable_max_tracking_error_m: None,
-                joined_at_s: None,
-                p95_tracking_error_m: None,
-                time_within_0_1m_fraction: None,
-                max_tracking_error_transforming_m: None,
-                straight_avg_abs_omega_radps: None,
-                slot_straight_avg_abs_omega_radps: None,
-                slot_straight_time_s: None,
-            };
-            let straight_omega = |since: f64| {
-                mean(
-                    rec.samples
-                        .iter()
-                        .zip(&straight)
-                        .filter(|(s, on)| **on && s.t >= since)
-                        .map(|(s, _)| s.robots[i].omega.abs()),
-                )
-            };
-            if *role != Role::Follower {
-                report.straight_avg_abs_omega_radps = straight_omega(0.0);
-                return report;
-            }
-            let errors: Vec<(&Sample, f64)> = rec
-                .samples
-                .iter()
-                .filter_map(|s| s.robots[i].error.map(|e| (s, e)))
-                .collect();
-            let joined = errors
-                .iter()
-                .find(|(_, e)| *e < JOINED_BELOW_M)
-                .map(|(s, _)| s.t);
-            let after: Vec<(&Sample, f64)> = errors
-                .iter()
-                .filter(|(s, _)| joined.is_some_and(|j| s.t >= j))
-                .copied()
-                .collect();
-            report.joined_at_s = joined;
-            report.straight_avg_abs_omega_radps = joined.and_then(straight_omega);
-            if let Some(j) = joined {
-                let own: Vec<f64> = rec
-                    .samples
-                    .iter()
-                    .zip(slot_straight_legs(&rec.samples, i))
-                    .filter(|(s, on)| *on && s.t >= j)
-                    .map(|(s, _)| s.robots[i].omega.abs())
-                    .collect();
-                report.slot_straight_time_s =
-                    Some(own.len() as f64 * SAMPLE_PERIOD_US as f64 / 1e6);
-                report.slot_straight_avg_abs_omega_radps = mean(own.into_iter());
-            }
-            report.max_tracking_error_m = if joined.is_some() {
-                max(after.iter().map(|(_, e)| *e))
-            } else {
-                max(errors.iter().map(|(_, e)| *e))
-            };
-            report.stable_max_tracking_error_m = max(after
-                .iter()
-                .filter(|(s, _)| !s.near_obstacle && !in_busy(s.t))
-                .map(|(_, e)| *e));
-            report.p95_tracking_error_m = quantile(after.iter().map(|(_, e)| *e).collect(), 0.95);
-            report.time_within_0_1m_fraction = (!after.is_empty()).then(|| {
-                after.iter().filter(|(_, e)| *e < JOINED_BELOW_M).count() as f64
-                    / after.len() as f64
-            });
-            report.max_tracking_error_transforming_m =
-                max(after.iter().filter(|(s, _)| in_busy(s.t)).map(|(_, e)| *e));
-            report
-        })
+        .map(|(i, (id, role))| judge.robot(i, *id, *role))
         .collect();
     Report {
         schema_version: SCHEMA_VERSION,
@@ -406,6 +302,152 @@ pub fn build_report(
         transformations,
         link,
         station_events: Vec::new(),
+    }
+}
+
+/// What each robot's figures are judged against: the samples, the leader's straight legs,
+/// the shape changes' busy windows, and how long the fleet was moving.
+struct Judge<'a> {
+    rec: &'a Recorder,
+    /// Per sample: on one of the leader's straight legs.
+    straight: Vec<bool>,
+    /// (from, to), s: a shape change from its start until the slots are shaped and the
+    /// followers back (or the blend's end if they never came back), plus 3 s.
+    busy: Vec<(f64, f64)>,
+    moving_until: f64,
+}
+
+impl<'a> Judge<'a> {
+    fn new(
+        rec: &'a Recorder,
+        facts: &RunFacts<'_>,
+        transformations: &[TransformationReport],
+    ) -> Self {
+        let spec = facts.scenario.formation_spec();
+        let transition = spec.transition_duration();
+        let busy = transformations
+            .iter()
+            .map(|t| {
+                let shaped = t.shaped_s.unwrap_or(transition);
+                let end = t.start_s + shaped.max(t.duration_s.unwrap_or(0.0));
+                (t.start_s, end + 3.0)
+            })
+            .collect();
+        let reach = spec
+            .wide_slots()
+            .into_iter()
+            .chain(spec.line_slots())
+            .map(|(l, _)| l)
+            .fold(0.0, f64::max);
+        let straight = match facts.roles.iter().position(|(_, r)| *r == Role::Leader) {
+            Some(leader) => straight_legs(&rec.samples, leader, reach),
+            None => vec![false; rec.samples.len()],
+        };
+        Self {
+            rec,
+            straight,
+            busy,
+            moving_until: facts.time_to_goal_s.unwrap_or(facts.sim_time_s),
+        }
+    }
+
+    fn in_busy(&self, t: f64) -> bool {
+        self.busy.iter().any(|(a, b)| t >= *a && t <= *b)
+    }
+
+    /// Robot `i`'s mean |ω| on the leader's straight legs from `since` on.
+    fn straight_omega(&self, i: usize, since: f64) -> Option<f64> {
+        mean(
+            self.rec
+                .samples
+                .iter()
+                .zip(&self.straight)
+                .filter(|(s, on)| **on && s.t >= since)
+                .map(|(s, _)| s.robots[i].omega.abs()),
+        )
+    }
+
+    /// Robot `i`'s report: its speeds while the fleet moved, and a follower's errors.
+    fn robot(&self, i: usize, id: u16, role: Role) -> RobotReport {
+        let moving: Vec<_> = self
+            .rec
+            .samples
+            .iter()
+            .filter(|s| s.t <= self.moving_until)
+            .map(|s| &s.robots[i])
+            .collect();
+        let n = moving.len().max(1) as f64;
+        let report = RobotReport {
+            id,
+            role: role.name().into(),
+            avg_speed_mps: moving.iter().map(|r| r.v.abs()).sum::<f64>() / n,
+            avg_abs_omega_radps: moving.iter().map(|r| r.omega.abs()).sum::<f64>() / n,
+            max_tracking_error_m: None,
+            stable_max_tracking_error_m: None,
+            joined_at_s: None,
+            p95_tracking_error_m: None,
+            time_within_0_1m_fraction: None,
+            max_tracking_error_transforming_m: None,
+            straight_avg_abs_omega_radps: None,
+            slot_straight_avg_abs_omega_radps: None,
+            slot_straight_time_s: None,
+        };
+        if role != Role::Follower {
+            return RobotReport {
+                straight_avg_abs_omega_radps: self.straight_omega(i, 0.0),
+                ..report
+            };
+        }
+        self.follower(i, report)
+    }
+
+    /// A follower's figures: when it joined, its tracking errors after, its turning
+    /// where its own reference runs straight.
+    fn follower(&self, i: usize, mut report: RobotReport) -> RobotReport {
+        let samples = &self.rec.samples;
+        let errors: Vec<(&Sample, f64)> = samples
+            .iter()
+            .filter_map(|s| s.robots[i].error.map(|e| (s, e)))
+            .collect();
+        let joined = errors
+            .iter()
+            .find(|(_, e)| *e < JOINED_BELOW_M)
+            .map(|(s, _)| s.t);
+        let after: Vec<(&Sample, f64)> = errors
+            .iter()
+            .filter(|(s, _)| joined.is_some_and(|j| s.t >= j))
+            .copied()
+            .collect();
+        report.joined_at_s = joined;
+        report.straight_avg_abs_omega_radps = joined.and_then(|j| self.straight_omega(i, j));
+        if let Some(j) = joined {
+            let own: Vec<f64> = samples
+                .iter()
+                .zip(slot_straight_legs(samples, i))
+                .filter(|(s, on)| *on && s.t >= j)
+                .map(|(s, _)| s.robots[i].omega.abs())
+                .collect();
+            report.slot_straight_time_s = Some(own.len() as f64 * SAMPLE_PERIOD_US as f64 / 1e6);
+            report.slot_straight_avg_abs_omega_radps = mean(own.into_iter());
+        }
+        report.max_tracking_error_m = if joined.is_some() {
+            max(after.iter().map(|(_, e)| *e))
+        } else {
+            max(errors.iter().map(|(_, e)| *e))
+        };
+        report.stable_max_tracking_error_m = max(after
+            .iter()
+            .filter(|(s, _)| !s.near_obstacle && !self.in_busy(s.t))
+            .map(|(_, e)| *e));
+        report.p95_tracking_error_m = quantile(after.iter().map(|(_, e)| *e).collect(), 0.95);
+        report.time_within_0_1m_fraction = (!after.is_empty()).then(|| {
+            after.iter().filter(|(_, e)| *e < JOINED_BELOW_M).count() as f64 / after.len() as f64
+        });
+        report.max_tracking_error_transforming_m = max(after
+            .iter()
+            .filter(|(s, _)| self.in_busy(s.t))
+            .map(|(_, e)| *e));
+        report
     }
 }
 

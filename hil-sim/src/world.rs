@@ -245,6 +245,8 @@ pub struct External {
 
 impl World {
     pub fn new(scenario: Scenario, options: SimOptions) -> Result<Self, BrainError> {
+        // The draws from the seed in a fixed order: the station's session and nonce, the
+        // radio's seed, each robot's phase, the localization's seed.
         let mut master = ChaCha8Rng::seed_from_u64(options.seed);
         let key = options.fleet_key();
         let station = BaseStation::new(
@@ -253,29 +255,7 @@ impl World {
             master.random(),
             nonce_base(SIM_EPOCH_MS, master.random()),
         );
-        let l = &scenario.link;
-        let radio = Radio::new(
-            RadioParams {
-                latency_s: l.latency_ms / 1000.0,
-                jitter_s: l.jitter_ms / 1000.0,
-                loss: l.loss,
-                byte_corruption: l.byte_corruption,
-                baud: l.baud,
-                reorder_s: 0.0,
-                duplicate: false,
-            },
-            ChaCha8Rng::seed_from_u64(master.random()),
-        );
-        let r = &scenario.robot;
-        let params = BodyParams {
-            footprint: r.footprint_radius,
-            track_width: r.track_width,
-            wheel_radius: r.wheel_radius,
-            ticks_per_rev: r.ticks_per_rev,
-            tau: r.motor_time_constant_s,
-            no_load_speed: r.motor_no_load_speed,
-            dead_band: r.motor_dead_band,
-        };
+        let radio = Self::radio_of(&scenario, &mut master);
         let cfg = scenario.robot_config();
         if options.firmware == Firmware::Qemu && cfg != RobotConfig::DEFAULT {
             return Err(BrainError(
@@ -285,35 +265,7 @@ impl World {
             ));
         }
         let elf = crate::qemu::firmware_elf();
-        let mut node_of = HashMap::new();
-        let robots = scenario
-            .robots
-            .iter()
-            .enumerate()
-            .map(|(i, e)| -> Result<SimRobot, BrainError> {
-                node_of.insert(e.id, i + 1);
-                let mut body = Body::new(
-                    params,
-                    e.start.x,
-                    e.start.y,
-                    e.start.heading_deg.to_radians(),
-                );
-                body.wheel = [e.initial_speed; 2];
-                let brain = boot_brain(&options, &elf, cfg, e.id, e.role, 1)?;
-                Ok(SimRobot {
-                    id: e.id,
-                    role: e.role,
-                    body,
-                    brain,
-                    // Robots are not synchronised: spread their ticks over the period.
-                    phase_us: (master.random_range(0..100) * 1000) as u64,
-                    duty: MotorOutput::default(),
-                    fixes: VecDeque::new(),
-                    inbox: Vec::new(),
-                    boot_count: 1,
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let (robots, node_of) = Self::robots_of(&scenario, &options, &elf, cfg, &mut master)?;
         let map = scenario.build_site();
         let scanner = Scanner::new(&scenario);
         let recorder = Recorder::new(&scenario);
@@ -348,6 +300,74 @@ impl World {
             t_us: 0,
             goal_at_us: None,
         })
+    }
+
+    /// The simulated radio with the scenario's `[link]`, seeded from `master`.
+    fn radio_of(scenario: &Scenario, master: &mut ChaCha8Rng) -> Radio {
+        let l = &scenario.link;
+        Radio::new(
+            RadioParams {
+                latency_s: l.latency_ms / 1000.0,
+                jitter_s: l.jitter_ms / 1000.0,
+                loss: l.loss,
+                byte_corruption: l.byte_corruption,
+                baud: l.baud,
+                reorder_s: 0.0,
+                duplicate: false,
+            },
+            ChaCha8Rng::seed_from_u64(master.random()),
+        )
+    }
+
+    /// The scenario's robots at their starts, each booted, its control phase drawn from
+    /// `master`; and each robot's radio node.
+    fn robots_of(
+        scenario: &Scenario,
+        options: &SimOptions,
+        elf: &std::path::Path,
+        cfg: RobotConfig,
+        master: &mut ChaCha8Rng,
+    ) -> Result<(Vec<SimRobot>, HashMap<u16, NodeId>), BrainError> {
+        let r = &scenario.robot;
+        let params = BodyParams {
+            footprint: r.footprint_radius,
+            track_width: r.track_width,
+            wheel_radius: r.wheel_radius,
+            ticks_per_rev: r.ticks_per_rev,
+            tau: r.motor_time_constant_s,
+            no_load_speed: r.motor_no_load_speed,
+            dead_band: r.motor_dead_band,
+        };
+        let mut node_of = HashMap::new();
+        let robots = scenario
+            .robots
+            .iter()
+            .enumerate()
+            .map(|(i, e)| -> Result<SimRobot, BrainError> {
+                node_of.insert(e.id, i + 1);
+                let mut body = Body::new(
+                    params,
+                    e.start.x,
+                    e.start.y,
+                    e.start.heading_deg.to_radians(),
+                );
+                body.wheel = [e.initial_speed; 2];
+                let brain = boot_brain(options, elf, cfg, e.id, e.role, 1)?;
+                Ok(SimRobot {
+                    id: e.id,
+                    role: e.role,
+                    body,
+                    brain,
+                    // Robots are not synchronised: spread their ticks over the period.
+                    phase_us: (master.random_range(0..100) * 1000) as u64,
+                    duty: MotorOutput::default(),
+                    fixes: VecDeque::new(),
+                    inbox: Vec::new(),
+                    boot_count: 1,
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok((robots, node_of))
     }
 
     /// The addressed receivers of a frame (unparseable: everyone, who will reject it).

@@ -180,6 +180,19 @@ pub fn map_entity(obstacles: &[Obstacle]) -> SceneEntity {
     e
 }
 
+/// A follower's slot point in the scene: a small green sphere.
+pub fn slot_marker((x, y): (f64, f64)) -> foxglove::messages::SpherePrimitive {
+    foxglove::messages::SpherePrimitive {
+        pose: pose(x, y, 0.05, 0.0),
+        size: Some(Vector3 {
+            x: 0.15,
+            y: 0.15,
+            z: 0.15,
+        }),
+        color: color(0.2, 0.8, 0.3),
+    }
+}
+
 /// Each robot's frame in the site frame, every sample.
 pub const TF_TOPIC: &str = "/tf";
 

@@ -76,8 +76,22 @@ impl NmeaReceiver {
             return Err(malformed("no checksum"));
         }
         let frame = nmea_kit::parse_frame(line).map_err(|e| malformed(format!("{e:?}")))?;
-        let fields = &frame.fields;
-        let (time, lat, lon, sigma) = match frame.sentence_type {
+        match self.sentence(frame.sentence_type, &frame.fields, now_unix_ms)? {
+            Some(position) => self.fix(position, now_unix_ms).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// A position sentence's (time of day, latitude, longitude, σ); a heading or `GST`
+    /// sentence kept for the next position, or a sentence this receiver needs not:
+    /// `None`.
+    fn sentence(
+        &mut self,
+        kind: &str,
+        fields: &[&str],
+        now_unix_ms: u64,
+    ) -> Result<Option<Position>, LineError> {
+        match kind {
             "GGA" => {
                 let gga = Gga::parse(fields).ok_or_else(|| malformed("GGA fields"))?;
                 let uere = gga.quality.and_then(uere).ok_or(LineError::NoSolution)?;
@@ -89,7 +103,7 @@ impl NmeaReceiver {
                     return Err(LineError::NoSolution);
                 };
                 let hdop = gga.hdop.map_or(2.0, f64::from).max(0.5);
-                (time_of_day(&time)?, lat, lon, uere * hdop)
+                Ok(Some((time_of_day(&time)?, lat, lon, uere * hdop)))
             }
             "RMC" => {
                 let rmc = Rmc::parse(fields).ok_or_else(|| malformed("RMC fields"))?;
@@ -101,12 +115,17 @@ impl NmeaReceiver {
                 ) else {
                     return Err(LineError::NoSolution);
                 };
-                (time_of_day(&time)?, lat, lon, uere(1).unwrap_or(2.5))
+                Ok(Some((
+                    time_of_day(&time)?,
+                    lat,
+                    lon,
+                    uere(1).unwrap_or(2.5),
+                )))
             }
             "HDT" => {
                 let hdt = Hdt::parse(fields).ok_or_else(|| malformed("HDT fields"))?;
                 self.heading = Some((true_heading(hdt.heading_true)?, now_unix_ms));
-                return Ok(None);
+                Ok(None)
             }
             "THS" => {
                 let ths = Ths::parse(fields).ok_or_else(|| malformed("THS fields"))?;
@@ -115,7 +134,7 @@ impl NmeaReceiver {
                     return Err(LineError::NoSolution);
                 }
                 self.heading = Some((true_heading(ths.heading_true)?, now_unix_ms));
-                return Ok(None);
+                Ok(None)
             }
             "GST" => {
                 let gst = Gst::parse(fields).ok_or_else(|| malformed("GST fields"))?;
@@ -124,10 +143,14 @@ impl NmeaReceiver {
                 };
                 let sigma = ((a as f64).powi(2) + (b as f64).powi(2)).sqrt() / 2f64.sqrt();
                 self.gst = Some((sigma, now_unix_ms));
-                return Ok(None);
+                Ok(None)
             }
-            _ => return Ok(None), // a sentence this receiver needs not
-        };
+            _ => Ok(None),
+        }
+    }
+
+    /// A position, with the heading heard last (fresh) and `GST`'s σ when fresh, as a fix.
+    fn fix(&self, (time, lat, lon, sigma): Position, now_unix_ms: u64) -> Result<Fix, LineError> {
         let Some((heading, _)) = self
             .heading
             .filter(|(_, at)| now_unix_ms.saturating_sub(*at) <= HEADING_FRESH_MS)
@@ -141,15 +164,18 @@ impl NmeaReceiver {
         if !(lat.is_finite() && lon.is_finite() && lat.abs() <= 90.0 && lon.abs() <= 180.0) {
             return Err(malformed(format!("position {lat}, {lon}")));
         }
-        Ok(Some(Fix {
+        Ok(Fix {
             robot: self.robot,
             unix_ms: time_of_day_to_unix_ms(time, now_unix_ms),
             position: self.origin.to_site(lat, lon),
             heading: self.origin.heading_to_site(heading),
             sigma,
-        }))
+        })
     }
 }
+
+/// A position sentence's time of day, latitude and longitude (degrees) and σ (m).
+type Position = (NaiveTime, f64, f64, f64);
 
 /// A true heading field: degrees in [0, 360].
 fn true_heading(field: Option<f32>) -> Result<f64, LineError> {

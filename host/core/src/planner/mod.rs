@@ -223,6 +223,67 @@ struct Routing {
     last_attempt_s: f64,
 }
 
+impl Routing {
+    /// Progress along the route from `pos` (the nearest point a little behind to a little
+    /// ahead), and the waypoints passed: (arc length, how many passed, whether the last
+    /// was); `None` without a route.
+    fn advance(&mut self, pos: DVec2, p: &PlannerParams) -> Option<(f64, usize, bool)> {
+        let route = self.route.as_ref()?;
+        let s = route.project(pos, self.s - 1.0, self.s + 3.0).max(0.0);
+        self.s = s;
+        let (mut passed, mut arrived) = (0, false);
+        while let Some(&arc) = self.waypoint_arc.first() {
+            let last = self.waypoint_arc.len() == 1;
+            let tol = if last {
+                p.arrival_tolerance
+            } else {
+                p.waypoint_tolerance
+            };
+            if (route.point_at(arc) - pos).length() > tol {
+                break;
+            }
+            self.waypoint_arc.remove(0);
+            passed += 1;
+            arrived = last;
+        }
+        Some((s, passed, arrived))
+    }
+
+    /// Whether the leader has made no progress for a window although nothing held it
+    /// back. A turn toward a new route makes no progress either: a U-turn on the spot at
+    /// the formation's turn limit takes longer than the window, and taken as a blockage it
+    /// sent the leader back round the other way, the slots' swing reversed under the
+    /// followers (0.5–0.9 m off). It is excused as long as turning round could take.
+    fn stalled(
+        &mut self,
+        now_s: f64,
+        s: f64,
+        speed_scale: f64,
+        turn_round_s: f64,
+        p: &PlannerParams,
+    ) -> bool {
+        let window = p.stuck_window_s;
+        let turning = self
+            .turning_since
+            .is_some_and(|since| now_s - since < turn_round_s);
+        if speed_scale >= 0.9 && !turning {
+            self.progress.push_back((now_s, s));
+        } else {
+            self.progress.clear();
+        }
+        while self
+            .progress
+            .front()
+            .is_some_and(|(t, _)| now_s - t > window)
+        {
+            self.progress.pop_front();
+        }
+        self.progress
+            .front()
+            .is_some_and(|&(t0, s0)| now_s - t0 >= window - 0.5 && s - s0 < p.stuck_progress)
+    }
+}
+
 /// The least distance from `obstacles` to `route` beyond arc length `from`, looking no
 /// farther than `reach` (∞ when nothing is that close).
 fn nearest_to_route(obstacles: &[Obstacle], route: &Route, from: f64, reach: f64) -> f64 {
@@ -470,9 +531,13 @@ impl Planner {
         if self.routing.is_some() {
             return self.follow_route(now_s, dt, pose, map, speed_scale);
         }
+        self.follow_field(now_s, dt, pose, map, half_width, speed_scale)
+    }
+
+    /// The field layer's waypoints: passes those within their tolerance; the next one,
+    /// and whether it is the last, if any remains.
+    fn field_waypoint(&mut self, pos: DVec2) -> Option<(DVec2, bool)> {
         let p = self.params;
-        let pos = pose.position;
-        // Waypoints.
         while let Some(w) = self.current_waypoint() {
             let last = self.next + 1 == self.route.len();
             let tol = if last {
@@ -491,7 +556,23 @@ impl Planner {
                 self.mode = Mode::Field;
             }
         }
-        let Some(goal) = self.current_waypoint() else {
+        let goal = self.current_waypoint()?;
+        Some((goal, self.next + 1 == self.route.len()))
+    }
+
+    /// One step under the paper's field: toward the next waypoint, escaping local minima
+    /// by following a boundary.
+    fn follow_field(
+        &mut self,
+        now_s: f64,
+        dt: f64,
+        pose: PlanPose,
+        map: &Map,
+        half_width: f64,
+        speed_scale: f64,
+    ) -> Command {
+        let pos = pose.position;
+        let Some((goal, is_last)) = self.field_waypoint(pos) else {
             self.mode = Mode::Arrived;
             self.v = 0.0;
             return Command {
@@ -501,65 +582,20 @@ impl Planner {
                 direction: DVec2::ZERO,
             };
         };
-        let is_last = self.next + 1 == self.route.len();
         let to_goal = goal - pos;
         let distance = to_goal.length();
-
         self.inflation = half_width.max(0.0);
         let field = self.field(pos, goal, is_last, map);
         let field_dir = field.normalize_or_zero();
         let heading_err_field = wrap_angle(field_dir.y.atan2(field_dir.x) - pose.heading);
         self.watch(now_s, distance, heading_err_field);
-
-        let (direction, strength) = match self.mode {
-            Mode::Escape {
-                side,
-                entry_distance,
-                since_s,
-                best_distance,
-                best_at_s,
-            } => {
-                let (best_distance, best_at_s) = if distance < best_distance - 0.1 {
-                    (distance, now_s)
-                } else {
-                    (best_distance, best_at_s)
-                };
-                let clear = self.way_is_clear(pos, to_goal, map);
-                if distance < entry_distance - 0.5 && clear {
-                    self.mode = Mode::Field;
-                    self.progress.clear();
-                    (field_dir, (field.length() / p.apf.k_a).min(1.0))
-                } else {
-                    let side = if now_s - best_at_s > p.escape_timeout_s {
-                        -side
-                    } else {
-                        side
-                    };
-                    self.mode = Mode::Escape {
-                        side,
-                        entry_distance,
-                        since_s,
-                        best_distance,
-                        best_at_s: if side != self.escape_side() {
-                            now_s
-                        } else {
-                            best_at_s
-                        },
-                    };
-                    (
-                        self.boundary_direction(pos, side, map).unwrap_or(field_dir),
-                        0.7,
-                    )
-                }
-            }
-            _ => (field_dir, (field.length() / p.apf.k_a).min(1.0)),
-        };
-
+        let (direction, strength) = self.field_direction(now_s, pos, to_goal, field, map);
         let err = if direction == DVec2::ZERO {
             0.0
         } else {
             wrap_angle(direction.y.atan2(direction.x) - pose.heading)
         };
+        let p = self.params;
         let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
         let target = p.max_speed * strength * align * align * speed_scale.clamp(0.0, 1.0);
@@ -570,6 +606,64 @@ impl Planner {
             mode: self.mode,
             direction,
         }
+    }
+
+    /// Where the field layer steers and how strongly: along the field, or round the
+    /// boundary while escaping (leaving the escape when closer than on entry with the way
+    /// to the goal clear, switching sides when it makes no progress).
+    fn field_direction(
+        &mut self,
+        now_s: f64,
+        pos: DVec2,
+        to_goal: DVec2,
+        field: DVec2,
+        map: &Map,
+    ) -> (DVec2, f64) {
+        let p = self.params;
+        let field_dir = field.normalize_or_zero();
+        let along_field = (field_dir, (field.length() / p.apf.k_a).min(1.0));
+        let Mode::Escape {
+            side,
+            entry_distance,
+            since_s,
+            best_distance,
+            best_at_s,
+        } = self.mode
+        else {
+            return along_field;
+        };
+        let distance = to_goal.length();
+        let (best_distance, best_at_s) = if distance < best_distance - 0.1 {
+            (distance, now_s)
+        } else {
+            (best_distance, best_at_s)
+        };
+        let clear = self.way_is_clear(pos, to_goal, map);
+        if distance < entry_distance - 0.5 && clear {
+            self.mode = Mode::Field;
+            self.progress.clear();
+            return along_field;
+        }
+        let side = if now_s - best_at_s > p.escape_timeout_s {
+            -side
+        } else {
+            side
+        };
+        self.mode = Mode::Escape {
+            side,
+            entry_distance,
+            since_s,
+            best_distance,
+            best_at_s: if side != self.escape_side() {
+                now_s
+            } else {
+                best_at_s
+            },
+        };
+        (
+            self.boundary_direction(pos, side, map).unwrap_or(field_dir),
+            0.7,
+        )
     }
 
     /// Plans the route from `from` if there is none yet (or retries a failed plan every
@@ -674,6 +768,18 @@ impl Planner {
         routing.progress.clear();
     }
 
+    /// Slows to a stop in `mode`.
+    fn hold(&mut self, mode: Mode, dt: f64) -> Command {
+        self.v = (self.v - self.params.max_accel * dt).max(0.0);
+        self.mode = mode;
+        Command {
+            v: self.v,
+            omega: 0.0,
+            mode,
+            direction: DVec2::ZERO,
+        }
+    }
+
     /// One step along the route: waypoints, blockage, the local APF toward the carrot.
     fn follow_route(
         &mut self,
@@ -685,86 +791,67 @@ impl Planner {
     ) -> Command {
         let p = self.params;
         let pos = pose.position;
-        let hold = |me: &mut Self, mode: Mode| {
-            me.v = (me.v - p.max_accel * dt).max(0.0);
-            me.mode = mode;
-            Command {
-                v: me.v,
-                omega: 0.0,
-                mode,
-                direction: DVec2::ZERO,
-            }
-        };
         if self.mode == Mode::Arrived {
-            return hold(self, Mode::Arrived);
+            return self.hold(Mode::Arrived, dt);
         }
-        let window = p.stuck_window_s;
         let turn_round_s = std::f64::consts::PI / self.turn_limit().max(0.05) + 1.0;
         self.prepare(now_s, pos, map);
         let Some(routing) = self.routing.as_mut() else {
-            return hold(self, Mode::NoRoute);
+            return self.hold(Mode::NoRoute, dt);
         };
-        let Some(route) = routing.route.as_ref() else {
-            return hold(self, Mode::NoRoute);
+        let Some((s, passed, arrived)) = routing.advance(pos, &p) else {
+            return self.hold(Mode::NoRoute, dt);
         };
-        // Progress: the nearest point of the route a little behind to a little ahead.
-        let s = route
-            .project(pos, routing.s - 1.0, routing.s + 3.0)
-            .max(0.0);
-        routing.s = s;
-        // Waypoints passed (the last: arrived).
-        let mut arrived = false;
-        while let Some(&arc) = routing.waypoint_arc.first() {
-            let last = routing.waypoint_arc.len() == 1;
-            let tol = if last {
-                p.arrival_tolerance
-            } else {
-                p.waypoint_tolerance
-            };
-            if (route.point_at(arc) - pos).length() > tol {
-                break;
-            }
-            routing.waypoint_arc.remove(0);
-            self.next += 1;
-            arrived = last;
-        }
-        // Blocked: no progress for a window although nothing held the leader back. A turn
-        // toward a new route makes no progress either: a U-turn on the spot at the
-        // formation's turn limit takes longer than the window, and taken as a blockage it
-        // sent the leader back round the other way, the slots' swing reversed under the
-        // followers (0.5–0.9 m off). It is excused as long as turning round could take.
-        let turning = routing
-            .turning_since
-            .is_some_and(|since| now_s - since < turn_round_s);
-        if speed_scale >= 0.9 && !turning {
-            routing.progress.push_back((now_s, s));
-        } else {
-            routing.progress.clear();
-        }
-        while routing
-            .progress
-            .front()
-            .is_some_and(|(t, _)| now_s - t > window)
-        {
-            routing.progress.pop_front();
-        }
-        let stalled = routing
-            .progress
-            .front()
-            .is_some_and(|&(t0, s0)| now_s - t0 >= window - 0.5 && s - s0 < p.stuck_progress);
+        let stalled = routing.stalled(now_s, s, speed_scale, turn_round_s, &p);
+        self.next += passed;
         if arrived {
-            return hold(self, Mode::Arrived);
+            return self.hold(Mode::Arrived, dt);
         }
         if stalled {
-            let ahead = route.point_at(s + 0.8);
-            tracing::info!(x = ahead.x, y = ahead.y, "route blocked: planning again");
-            routing.blocked.push((ahead, 0.5));
-            routing.replans += 1;
-            routing.route = None;
-            self.note(PlannerEvent::Replanned);
-            self.plan_route(pos, now_s, map);
-            return hold(self, Mode::Route);
+            self.replan_blocked(s, pos, now_s, map);
+            return self.hold(Mode::Route, dt);
         }
+        self.drive_along(now_s, dt, pose, s, map, speed_scale)
+    }
+
+    /// The way ahead is blocked by something the map does not hold: the stretch ahead is
+    /// marked blocked and the route planned again.
+    fn replan_blocked(&mut self, s: f64, pos: DVec2, now_s: f64, map: &Map) {
+        let Some(routing) = self.routing.as_mut() else {
+            return;
+        };
+        let Some(route) = routing.route.as_ref() else {
+            return;
+        };
+        let ahead = route.point_at(s + 0.8);
+        tracing::info!(x = ahead.x, y = ahead.y, "route blocked: planning again");
+        routing.blocked.push((ahead, 0.5));
+        routing.replans += 1;
+        routing.route = None;
+        self.note(PlannerEvent::Replanned);
+        self.plan_route(pos, now_s, map);
+    }
+
+    /// Drives toward the carrot on the route, `s` along it: the attraction, the
+    /// repulsion never backward along the route and capped at the attraction, the turn
+    /// and a speed that brakes for the goal.
+    fn drive_along(
+        &mut self,
+        now_s: f64,
+        dt: f64,
+        pose: PlanPose,
+        s: f64,
+        map: &Map,
+        speed_scale: f64,
+    ) -> Command {
+        let p = self.params;
+        let pos = pose.position;
+        let Some(routing) = self.routing.as_mut() else {
+            return self.hold(Mode::NoRoute, dt);
+        };
+        let Some(route) = routing.route.as_ref() else {
+            return self.hold(Mode::NoRoute, dt);
+        };
         let end = route.length();
         let carrot = route.point_at(s + p.route_lookahead);
         let tangent = route.tangent_at(s);

@@ -348,6 +348,27 @@ impl ClearanceGrid {
     }
 }
 
+/// The octile distance of (di, dj) cells in metres: admissible and consistent for the
+/// search (a metre costs at least 1). By column and row, which the expansion has at hand
+/// (no division by the row length per neighbour).
+fn octile(di: i64, dj: i64, cell: f32) -> f32 {
+    let (di, dj) = (di.unsigned_abs() as f32, dj.unsigned_abs() as f32);
+    (di.max(dj) + (std::f32::consts::SQRT_2 - 1.0) * di.min(dj)) * cell
+}
+
+/// The cells from `s` to `t` by their parents (`parent[k]`: k's parent + 1).
+fn walk_back(parent: &[u32], s: usize, t: usize) -> Vec<usize> {
+    let mut cells = vec![t];
+    while let Some(&k) = cells.last() {
+        if k == s {
+            break;
+        }
+        cells.push(parent[k] as usize - 1);
+    }
+    cells.reverse();
+    cells
+}
+
 /// A planned route: a polyline and, per vertex, the least clearance of the way to the next.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Route {
@@ -704,14 +725,7 @@ impl RoutePlanner {
         let wide = self.params.wide_clearance as f32;
         let entry = self.params.narrow_entry as f32;
         let (ti, tj) = ((t % nx) as i64, (t / nx) as i64);
-        // Octile distance in metres: admissible and consistent, a metre costs at least 1.
-        // By column and row, which the expansion has at hand (no division by `nx` per
-        // neighbour).
-        let h = |i: i64, j: i64| {
-            let di = (i - ti).unsigned_abs() as f32;
-            let dj = (j - tj).unsigned_abs() as f32;
-            (di.max(dj) + (std::f32::consts::SQRT_2 - 1.0) * di.min(dj)) * cell
-        };
+        let h = |i: i64, j: i64| octile(i - ti, j - tj, cell);
         // Zeroed, so the allocator hands over fresh pages that only the cells the search
         // touches fault in (a corridor search on a large grid touches few): `parent` holds
         // a cell's parent + 1, 0 for none yet, and `cost` counts only where it is set.
@@ -770,15 +784,7 @@ impl RoutePlanner {
         if !reached(&parent, t) {
             return Err(closest.1);
         }
-        let mut cells = vec![t];
-        while let Some(&k) = cells.last() {
-            if k == s {
-                break;
-            }
-            cells.push(parent[k] as usize - 1);
-        }
-        cells.reverse();
-        Ok(cells)
+        Ok(walk_back(&parent, s, t))
     }
 
     /// Shortens the grid path: a shortcut from point i to j replaces the points between

@@ -406,6 +406,21 @@ impl Scenario {
     }
 
     fn check_sim(&self, p: &mut Problems) {
+        self.check_link(p);
+        self.check_localization(p);
+        p.positive("sim.duration_s", self.sim.duration_s);
+        for (i, f) in self.faults.iter().enumerate() {
+            self.check_fault(p, i, f);
+        }
+        if self.sim.physics_step_ms == 0 || 100 % self.sim.physics_step_ms != 0 {
+            p.fail(
+                "sim.physics_step_ms",
+                "must divide the 100 ms control period",
+            );
+        }
+    }
+
+    fn check_link(&self, p: &mut Problems) {
         let l = &self.link;
         if p.finite("link.latency_ms", &[l.latency_ms, l.jitter_ms])
             && (l.latency_ms < 0.0 || l.jitter_ms < 0.0)
@@ -417,6 +432,10 @@ impl Scenario {
         if l.baud == 0 {
             p.fail("link.baud", "must be > 0");
         }
+    }
+
+    /// `[localization]`, and `[perception]`'s limits.
+    fn check_localization(&self, p: &mut Problems) {
         let z = &self.localization;
         if p.finite(
             "localization.sigma_m",
@@ -454,60 +473,55 @@ impl Scenario {
                 &[o.x_axis_bearing_deg],
             );
         }
-        p.positive("sim.duration_s", self.sim.duration_s);
-        for (i, f) in self.faults.iter().enumerate() {
-            let at = |name: &str| format!("faults[{i}].{name}");
-            if p.finite(&at("at_s"), &[f.at_s]) && f.at_s < 0.0 {
-                p.fail(&at("at_s"), "must be ≥ 0");
-            }
-            if let Some(d) = f.duration_s {
-                p.positive(&at("duration_s"), d);
-            }
-            let needs_robot = matches!(
-                f.kind,
-                FaultKind::Reboot
-                    | FaultKind::StuckWheel
-                    | FaultKind::WeakMotor
-                    | FaultKind::EncoderDead
-                    | FaultKind::PoseJump
-            );
-            match (needs_robot, f.robot) {
-                (true, None) => p.fail(&format!("faults[{i}]"), "this fault needs `robot`"),
-                (true, Some(id)) if !self.robots.iter().any(|r| r.id == id) => {
-                    p.fail(&at("robot"), &format!("no robot with id {id}"))
-                }
-                (false, Some(_)) => p.fail(&at("robot"), "this fault does not take `robot`"),
-                _ => {}
-            }
-            let needs_value = matches!(
-                f.kind,
-                FaultKind::LatencySpike
-                    | FaultKind::WrongKeyAttacker
-                    | FaultKind::ReplayAttacker
-                    | FaultKind::GarbageFlood
-                    | FaultKind::WeakMotor
-                    | FaultKind::PoseJump
-                    | FaultKind::Reorder
-                    | FaultKind::Corruption
-                    | FaultKind::DelayRelay
-                    | FaultKind::HelloReplay
-                    | FaultKind::WelcomeHoldback
-                    | FaultKind::CapturedRobot
-            );
-            match (needs_value, f.value) {
-                (true, None) => p.fail(&format!("faults[{i}]"), "this fault needs `value`"),
-                (true, Some(v)) => {
-                    p.positive(&at("value"), v);
-                }
-                (false, Some(_)) => p.fail(&at("value"), "this fault does not take `value`"),
-                _ => {}
-            }
+    }
+
+    /// `faults[i]`: its time, and the robot and value its kind takes.
+    fn check_fault(&self, p: &mut Problems, i: usize, f: &FaultSpec) {
+        let at = |name: &str| format!("faults[{i}].{name}");
+        if p.finite(&at("at_s"), &[f.at_s]) && f.at_s < 0.0 {
+            p.fail(&at("at_s"), "must be ≥ 0");
         }
-        if self.sim.physics_step_ms == 0 || 100 % self.sim.physics_step_ms != 0 {
-            p.fail(
-                "sim.physics_step_ms",
-                "must divide the 100 ms control period",
-            );
+        if let Some(d) = f.duration_s {
+            p.positive(&at("duration_s"), d);
+        }
+        let needs_robot = matches!(
+            f.kind,
+            FaultKind::Reboot
+                | FaultKind::StuckWheel
+                | FaultKind::WeakMotor
+                | FaultKind::EncoderDead
+                | FaultKind::PoseJump
+        );
+        match (needs_robot, f.robot) {
+            (true, None) => p.fail(&format!("faults[{i}]"), "this fault needs `robot`"),
+            (true, Some(id)) if !self.robots.iter().any(|r| r.id == id) => {
+                p.fail(&at("robot"), &format!("no robot with id {id}"))
+            }
+            (false, Some(_)) => p.fail(&at("robot"), "this fault does not take `robot`"),
+            _ => {}
+        }
+        let needs_value = matches!(
+            f.kind,
+            FaultKind::LatencySpike
+                | FaultKind::WrongKeyAttacker
+                | FaultKind::ReplayAttacker
+                | FaultKind::GarbageFlood
+                | FaultKind::WeakMotor
+                | FaultKind::PoseJump
+                | FaultKind::Reorder
+                | FaultKind::Corruption
+                | FaultKind::DelayRelay
+                | FaultKind::HelloReplay
+                | FaultKind::WelcomeHoldback
+                | FaultKind::CapturedRobot
+        );
+        match (needs_value, f.value) {
+            (true, None) => p.fail(&format!("faults[{i}]"), "this fault needs `value`"),
+            (true, Some(v)) => {
+                p.positive(&at("value"), v);
+            }
+            (false, Some(_)) => p.fail(&at("value"), "this fault does not take `value`"),
+            _ => {}
         }
     }
 }
