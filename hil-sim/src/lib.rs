@@ -1,12 +1,19 @@
 //! Software-in-the-loop: the robots' bodies, sensors and radio simulated around their real
 //! control code (natively, or the firmware in QEMU) and the real base station.
 //!
+//! Module map:
+//!
+//! - [`world`]: everything on one simulated clock, a step in named phases (faults,
+//!   radio arrivals, localization, scan and station, control, bodies, observation);
 //! - [`plant`]: differential-drive bodies, motors, encoders;
+//! - sensors: [`scanner`] (the leader's lidar) and [`ring`] (each robot's ultrasonic
+//!   ring);
 //! - [`radio`]: the byte pipe between nodes: latency, jitter, loss, corruption, baud;
-//! - [`brain`]: the control code a robot runs;
-//! - [`world`]: everything on one simulated clock;
-//! - [`metrics`]: what a run measured; [`report`], [`plot`], [`trace`]: its report, figure
-//!   and CSV trace; [`run`]: one run, start to report.
+//! - [`brain`]: the control code a robot runs, natively or in [`qemu`];
+//! - [`faults`]: faults and attacks injected on schedule; [`observer`]: what the judge
+//!   hears on the air when the station is another process;
+//! - [`metrics`]: what a run measured; [`report`], [`plot`], [`trace`], [`recording`]: its
+//!   report, figure, CSV trace and MCAP; [`run`]: one run, start to report.
 
 pub mod brain;
 pub mod faults;

@@ -1,4 +1,9 @@
-//! `basestation`: the operator's program. One module per subcommand under `cli/`.
+//! `basestation`: the operator's program.
+//!
+//! Module map: [`commands`], one module per subcommand (run, sim, robots, check, decode,
+//! robot-config, feed-key, feed-relay) and the flag groups they share; [`live`], what runs
+//! beside a live run (the console, the site's feeds, the recording and live stream, the
+//! loop's timing); [`key`], the fleet key and its one check.
 
 mod commands;
 mod key;
