@@ -4,16 +4,16 @@
 //!
 //! One step is a pipeline over rooms that each own one concern and return values:
 //!
-//! - [`fleet`]: what the robots reported (telemetry, faults, who is fresh, where the
-//!   leader is now); [`radio`]: bytes in and out over the authenticated link;
+//! - `fleet`: what the robots reported (telemetry, faults, who is fresh, where the
+//!   leader is now); `radio`: bytes in and out over the authenticated link;
 //! - the **gate** ([`Gate`]): whether the fleet may move at all (the operator's hold in
-//!   [`operator`], a robot fault, the localization watch, a lost leader, a fleet still
+//!   `operator`, a robot fault, the localization watch, a lost leader, a fleet still
 //!   assembling);
-//! - [`guidance`]: the planner and the formation manager (`look`, then `drive`);
-//! - [`detour`]: followers sent round what holds them;
-//! - [`localize`] with [`fixes`] and [`fix_check`]: fixes from the site's localization
+//! - `guidance`: the planner and the formation manager (`look`, then `drive`);
+//! - `detour`: followers sent round what holds them;
+//! - `localize` with `fixes` and `fix_check`: fixes from the site's localization
 //!   forwarded and watched; [`crate::perception`]: what the scans found;
-//! - [`events`]: what the operator and the report are told; [`smoothing`]: the turn rate
+//! - `events`: what the operator and the report are told; `smoothing`: the turn rate
 //!   the followers are told.
 
 mod detour;
