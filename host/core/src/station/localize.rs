@@ -22,7 +22,7 @@ pub enum NotForwarded {
     /// A pose the wire cannot carry, or a σ that is not a localization's (0, over 65 m).
     OutOfRange,
     /// Far from where the robot knows it is, while fixes that agree with it keep coming:
-    /// held back ([`super::fixes::HOLD_OUTLIERS_MS`]).
+    /// held back (5 s after the last agreeing fix: `fixes::HOLD_OUTLIERS_MS`).
     Outlier,
 }
 
