@@ -6,8 +6,10 @@
 //! - [`world`]: everything on one simulated clock, a step in named phases (faults,
 //!   radio arrivals, localization, scan and station, control, bodies, observation);
 //! - [`plant`]: differential-drive bodies, motors, encoders;
+//! - [`movers`]: people, cyclists and vehicles, oblivious or social (the social force
+//!   model), and crowds;
 //! - sensors: [`scanner`] (the leader's lidar) and [`ring`] (each robot's ultrasonic
-//!   ring);
+//!   ring), which see the movers as they see obstacles;
 //! - [`radio`]: the byte pipe between nodes: latency, jitter, loss, corruption, baud;
 //! - [`brain`]: the control code a robot runs, natively or in [`qemu`];
 //! - [`faults`]: faults and attacks injected on schedule; [`observer`]: what the judge
@@ -18,6 +20,7 @@
 pub mod brain;
 pub mod faults;
 pub mod metrics;
+pub mod movers;
 pub mod observer;
 pub mod plant;
 pub mod plot;

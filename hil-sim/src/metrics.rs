@@ -18,7 +18,9 @@ use glam::DVec2;
 use protocol::messages::RobotMode;
 use serde::Serialize;
 
+use crate::movers::MoverState;
 use crate::plant::Body;
+use base_station::scenario::movers::MoverKind;
 
 /// Samples for the figure, the trace and the report: 10 Hz.
 pub const SAMPLE_PERIOD_US: u64 = 100_000;
@@ -145,6 +147,74 @@ pub struct Recorder {
     touching: HashSet<(usize, usize)>,
     /// The true leader's path: the line's reference.
     path: DrivenPath,
+    /// What the robots did among the movers.
+    pub movers: MoverMeasures,
+    /// The last physics step observed, µs.
+    last_us: Option<u64>,
+}
+
+/// A robot moving slower than this stands, m/s.
+const STANDING: f64 = 0.05;
+/// A moving robot within this of a person's footprint intrudes on their personal space, m.
+const INTRUSION_WITHIN: f64 = 0.5;
+/// The leader standing with a person within this of its footprint is freezing, m.
+const FREEZING_WITHIN: f64 = 1.5;
+
+/// What the robots did among the movers.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct MoverMeasures {
+    /// Contacts with a mover while the robot moved (the robot's doing: must be 0).
+    pub contacts_moving: u32,
+    /// Contacts of a mover with a robot that stood (walked into).
+    pub contacts_standing: u32,
+    /// The least gap between a robot's footprint and a person's (pedestrian or
+    /// cyclist), m; ∞ without persons.
+    pub min_person_clearance_m: f64,
+    /// Time a moving robot was within 0.5 m of a person's footprint, s.
+    pub intrusion_s: f64,
+    /// Time the leader stood with a person within 1.5 m of its footprint, s.
+    pub freezing_s: f64,
+    /// Who touched whom: (robot, mover).
+    #[serde(skip)]
+    touching: HashSet<(usize, usize)>,
+}
+
+impl MoverMeasures {
+    fn new() -> Self {
+        Self {
+            min_person_clearance_m: f64::INFINITY,
+            ..Self::default()
+        }
+    }
+
+    /// One physics step of `dt`: `robots` as (position, footprint, speed, leads).
+    fn observe(&mut self, robots: &[(DVec2, f64, f64, bool)], movers: &[MoverState], dt: f64) {
+        let (mut intruding, mut freezing) = (false, false);
+        for (i, (p, fp, v, leads)) in robots.iter().enumerate() {
+            let moving = v.abs() > STANDING;
+            for m in movers {
+                let gap = m.distance(*p) - fp;
+                let person = m.kind != MoverKind::Vehicle;
+                if person {
+                    self.min_person_clearance_m = self.min_person_clearance_m.min(gap);
+                    intruding |= moving && gap < INTRUSION_WITHIN;
+                    freezing |= *leads && !moving && gap < FREEZING_WITHIN;
+                }
+                let pair = (i, m.index);
+                if gap >= 0.0 {
+                    self.touching.remove(&pair);
+                } else if self.touching.insert(pair) {
+                    if moving {
+                        self.contacts_moving += 1;
+                    } else {
+                        self.contacts_standing += 1;
+                    }
+                }
+            }
+        }
+        self.intrusion_s += if intruding { dt } else { 0.0 };
+        self.freezing_s += if freezing { dt } else { 0.0 };
+    }
 }
 
 const OBSTACLE: usize = usize::MAX;
@@ -174,6 +244,8 @@ impl Recorder {
             contacts: 0,
             touching: HashSet::new(),
             path: DrivenPath::default(),
+            movers: MoverMeasures::new(),
+            last_us: None,
         }
     }
 
@@ -187,14 +259,31 @@ impl Recorder {
         }
     }
 
-    /// Called after every physics step. `map`: everything a robot can touch.
+    /// Called after every physics step. `map`: everything a robot can touch, besides the
+    /// `movers`.
     pub fn observe<R: Tracked>(
         &mut self,
         t_us: u64,
         robots: &[R],
         map: &Map,
+        movers: &[MoverState],
         view: &dyn FleetView,
     ) {
+        let dt = self
+            .last_us
+            .map_or(0.0, |l| t_us.saturating_sub(l) as f64 / 1e6);
+        self.last_us = Some(t_us);
+        if !movers.is_empty() {
+            let bodies: Vec<(DVec2, f64, f64, bool)> = robots
+                .iter()
+                .map(|r| {
+                    let b = r.body();
+                    let leads = r.role() == Role::Leader;
+                    (DVec2::new(b.x, b.y), self.footprint, b.twist().0, leads)
+                })
+                .collect();
+            self.movers.observe(&bodies, movers, dt);
+        }
         let fp = self.footprint;
         let reach = self.r_det + fp;
         let mut near = false;

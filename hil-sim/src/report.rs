@@ -1,6 +1,7 @@
 //! The run's report: a public interface. `schema_version` 2 keeps every schema-1 key and
 //! adds per-follower join times, percentiles and transformation errors, and a reason per
-//! transformation. Every key is documented in `docs/sim.md`.
+//! transformation; 3 adds what the robots did among the movers (`movers`). Every key is
+//! documented in `docs/sim.md`.
 
 use std::collections::BTreeMap;
 
@@ -12,7 +13,7 @@ use serde::Serialize;
 
 use crate::metrics::{Recorder, Sample, SAMPLE_PERIOD_US};
 
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// A follower has joined at its first sample under this error, m.
 pub const JOINED_BELOW_M: f64 = 0.1;
@@ -104,6 +105,54 @@ pub struct Report {
     pub link: LinkReport,
     /// What the base station noticed (links, formation changes, a lost leader, …).
     pub station_events: Vec<StationEventReport>,
+    /// What the robots did among the people, cyclists and vehicles on the site.
+    pub movers: MoversReport,
+}
+
+/// The robots among the movers (schema 3).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct MoversReport {
+    /// Movers on the site over the run (crowds' persons included).
+    pub count: usize,
+    /// Contacts with a mover while the robot moved: the robot's doing.
+    pub contacts_moving: u32,
+    /// Contacts of a mover with a robot that stood: walked into.
+    pub contacts_standing: u32,
+    /// The least gap between a robot's footprint and a person's (pedestrian or cyclist),
+    /// m; null without persons.
+    pub min_person_clearance_m: Option<f64>,
+    /// Time a moving robot was within 0.5 m of a person's footprint, s.
+    pub intrusion_s: f64,
+    /// Time the leader stood with a person within 1.5 m of its footprint, s.
+    pub freezing_s: f64,
+    /// The same scenario and seed with nobody on the site: its time to goal (null: not
+    /// run, or the goal not reached).
+    pub time_to_goal_empty_s: Option<f64>,
+}
+
+impl MoversReport {
+    /// The measures of a run (`time_to_goal_empty_s` is filled by whoever ran the empty
+    /// site).
+    pub fn of(rec: &Recorder, count: usize) -> Self {
+        let m = &rec.movers;
+        Self {
+            count,
+            contacts_moving: m.contacts_moving,
+            contacts_standing: m.contacts_standing,
+            min_person_clearance_m: m
+                .min_person_clearance_m
+                .is_finite()
+                .then_some(m.min_person_clearance_m),
+            intrusion_s: m.intrusion_s,
+            freezing_s: m.freezing_s,
+            time_to_goal_empty_s: None,
+        }
+    }
+
+    /// Time to goal over the empty site's, if both reached it.
+    pub fn slowdown(&self, time_to_goal_s: Option<f64>) -> Option<f64> {
+        Some(time_to_goal_s? / self.time_to_goal_empty_s?)
+    }
 }
 
 impl Report {
@@ -258,6 +307,8 @@ pub struct RunFacts<'a> {
     pub sim_time_s: f64,
     pub wall_time_s: f64,
     pub time_to_goal_s: Option<f64>,
+    /// Movers on the site over the run.
+    pub movers: usize,
 }
 
 pub fn build_report(
@@ -293,7 +344,7 @@ pub fn build_report(
         wall_time_s: facts.wall_time_s,
         goal_reached: facts.time_to_goal_s.is_some(),
         time_to_goal_s: facts.time_to_goal_s,
-        collisions: rec.contacts,
+        collisions: rec.contacts + rec.movers.contacts_moving + rec.movers.contacts_standing,
         min_obstacle_clearance_m: rec.min_clearance,
         min_robot_separation_m: rec.min_separation,
         convergence_time_s: convergence,
@@ -302,6 +353,7 @@ pub fn build_report(
         transformations,
         link,
         station_events: Vec::new(),
+        movers: MoversReport::of(rec, facts.movers),
     }
 }
 

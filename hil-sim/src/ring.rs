@@ -9,6 +9,8 @@ use std::collections::HashMap;
 use base_station::map::Map;
 use glam::DVec2;
 
+use crate::movers::MoverState;
+
 /// How far the ring sees beyond the footprint, m.
 pub const RANGE: f64 = 2.0;
 /// Grid cell for robot neighbour queries, m (≥ range + two footprints).
@@ -75,12 +77,24 @@ impl Neighbours {
     }
 }
 
-/// Robot `i`'s ring at heading `heading` with footprint `fp`, over the site `map` and the
-/// other robots: the free distance ahead and behind, where something is within range.
-pub fn sense(i: usize, heading: f64, fp: f64, map: &Map, robots: &Neighbours) -> [Option<f32>; 2] {
+/// Robot `i`'s ring at heading `heading` with footprint `fp`, over the site `map`, the
+/// other robots and the movers: the free distance ahead and behind, where something is
+/// within range.
+pub fn sense(
+    i: usize,
+    heading: f64,
+    fp: f64,
+    map: &Map,
+    robots: &Neighbours,
+    movers: &[MoverState],
+) -> [Option<f32>; 2] {
     let p = robots.at[i];
     let reach = RANGE + fp;
     let others = robots.around(i);
+    let near: Vec<&MoverState> = movers
+        .iter()
+        .filter(|m| m.position.distance(p) < reach + m.shape.reach())
+        .collect();
     let facing = |base: f64| {
         let free = BEAMS_DEG
             .iter()
@@ -92,6 +106,10 @@ pub fn sense(i: usize, heading: f64, fp: f64, map: &Map, robots: &Neighbours) ->
                     .iter()
                     .filter_map(|q| ray_circle(p, dir, *q, fp))
                     .fold(wall, f64::min);
+                let echo = near
+                    .iter()
+                    .filter_map(|m| m.ray(p, dir))
+                    .fold(echo, f64::min);
                 (echo < reach)
                     .then(|| free_ahead(echo, deg.to_radians(), fp))
                     .flatten()

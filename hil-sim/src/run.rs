@@ -28,6 +28,27 @@ pub fn simulate_with(
     Ok((report, world))
 }
 
+/// The time to goal of `scenario` with nobody on the site (its movers and crowds taken
+/// away), run as `options` say but at full speed and with a simulated base station: the
+/// report's `movers.time_to_goal_empty_s`. `None` without movers, or short of the goal.
+pub fn empty_site_time(
+    scenario: &Scenario,
+    options: &SimOptions,
+) -> Result<Option<f64>, BrainError> {
+    if scenario.movers.is_empty() && scenario.crowds.is_empty() {
+        return Ok(None);
+    }
+    let mut empty = scenario.clone();
+    empty.movers.clear();
+    empty.crowds.clear();
+    let mut quick = SimOptions::new(options.seed);
+    quick.firmware = options.firmware;
+    quick.key = options.key.clone();
+    quick.fixes = options.fixes;
+    let (report, _) = simulate(empty, quick)?;
+    Ok(report.time_to_goal_s)
+}
+
 /// The report of a world run so far. With an external base station, shape changes are
 /// the ones heard on the air and the station's events are not known here.
 pub fn report_of(world: &World, wall_time_s: f64) -> Report {
@@ -63,6 +84,7 @@ pub fn report_of(world: &World, wall_time_s: f64) -> Report {
         sim_time_s: world.t_us as f64 / 1e6,
         wall_time_s,
         time_to_goal_s: world.goal_time_s(),
+        movers: world.movers.len(),
     };
     let mut report = report::build_report(&world.recorder, &facts, transformations, link);
     if world.external.is_some() {

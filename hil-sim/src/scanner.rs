@@ -1,6 +1,6 @@
 //! The leader's range scanner: a planar lidar (`RAYS` beams over a full turn, `RANGE`
-//! metres) that sees the site as it is. It reports only hits on what the map does not
-//! hold (where nothing on the site is nearer along the beam): the base station ignores
+//! metres) that sees the site as it is, movers included. It reports only hits on what the
+//! map does not hold (where nothing on the site is nearer along the beam): the base station ignores
 //! hits on mapped surfaces anyway, and leaving them out spares the simulator the casts on
 //! maps without anything unmapped. Hits are registered in the site frame from the
 //! leader's true pose (perfect registration).
@@ -8,6 +8,8 @@
 use base_station::map::Map;
 use base_station::scenario::Scenario;
 use glam::DVec2;
+
+use crate::movers::MoverState;
 
 /// Beams per scan.
 pub const RAYS: usize = 180;
@@ -34,19 +36,25 @@ impl Scanner {
         Self { unmapped }
     }
 
-    /// One scan from `at` over `site` (everything on it, mapped or not): the points where
-    /// a beam first meets something unmapped.
-    pub fn scan(&self, at: DVec2, site: &Map) -> Vec<DVec2> {
-        let Some(unmapped) = &self.unmapped else {
-            return Vec::new();
-        };
-        if unmapped.near(at, RANGE).next().is_none() {
+    /// One scan from `at` over `site` (everything on it, mapped or not) and the movers
+    /// on it: the points where a beam first meets something unmapped or a mover.
+    pub fn scan(&self, at: DVec2, site: &Map, movers: &[MoverState]) -> Vec<DVec2> {
+        let near: Vec<&MoverState> = movers
+            .iter()
+            .filter(|m| m.position.distance(at) < RANGE + m.shape.reach())
+            .collect();
+        let unmapped = self
+            .unmapped
+            .as_ref()
+            .filter(|u| u.near(at, RANGE).next().is_some());
+        if unmapped.is_none() && near.is_empty() {
             return Vec::new();
         }
         (0..RAYS)
             .filter_map(|k| {
                 let dir = DVec2::from_angle(k as f64 * std::f64::consts::TAU / RAYS as f64);
-                let d = unmapped.ray_cast(at, dir, RANGE);
+                let d = unmapped.map_or(RANGE, |u| u.ray_cast(at, dir, RANGE));
+                let d = near.iter().filter_map(|m| m.ray(at, dir)).fold(d, f64::min);
                 // The site holds that obstacle too: nothing nearer means the cast gives d.
                 let seen = d < RANGE && site.ray_cast(at, dir, d) >= d;
                 seen.then(|| at + dir * d)

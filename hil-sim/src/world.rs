@@ -24,6 +24,7 @@ use rand_distr::{Distribution, Normal};
 use crate::brain::{Brain, BrainError, NativeBrain};
 use crate::faults::{Action, DeadBrain, Injector};
 use crate::metrics::{FleetView, Recorder, StationView, Tracked};
+use crate::movers::{MoverState, Movers};
 use crate::observer::AirObserver;
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
@@ -219,6 +220,10 @@ pub struct World {
     elf: std::path::PathBuf,
     /// The base station when it is another process; `None`: `station` runs here.
     pub external: Option<External>,
+    /// People, cyclists and vehicles on the site.
+    pub movers: Movers,
+    /// Where they are now (after the last step): what the sensors and the recorder see.
+    pub mover_states: Vec<MoverState>,
     /// Each route the station planned, when it was first seen (µs): for the recording.
     pub routes: Vec<(u64, Vec<DVec2>)>,
     /// Each robot's link health as the station saw it, once a second (µs): for the recording.
@@ -267,6 +272,8 @@ impl World {
         let elf = crate::qemu::firmware_elf();
         let (robots, node_of) = Self::robots_of(&scenario, &options, &elf, cfg, &mut master)?;
         let map = scenario.build_site();
+        let movers = Movers::new(&scenario, &map, options.seed);
+        let mover_states = movers.states(0.0).collect();
         let scanner = Scanner::new(&scenario);
         let recorder = Recorder::new(&scenario);
         let radio_params = *radio.params();
@@ -288,6 +295,8 @@ impl World {
             }),
             routes: Vec::new(),
             links: Vec::new(),
+            movers,
+            mover_states,
             map,
             station,
             radio,
@@ -522,8 +531,25 @@ impl World {
         }
         self.control(step_us)?;
         self.move_bodies(step_us);
+        self.move_movers(step_us);
         self.observe();
         Ok(())
+    }
+
+    /// The movers walk (or drive) on, around the robots where they are social.
+    fn move_movers(&mut self, step_us: u64) {
+        if self.movers.is_empty() {
+            return;
+        }
+        let robots: Vec<(DVec2, f64)> = self
+            .robots
+            .iter()
+            .map(|r| (DVec2::new(r.body.x, r.body.y), r.body.params.footprint))
+            .collect();
+        let t_s = self.t_us as f64 / 1e6;
+        self.movers
+            .step(t_s, step_us as f64 / 1e6, &robots, &self.map);
+        self.mover_states = self.movers.states(t_s).collect();
     }
 
     /// Radio arrivals: the base station takes its bytes at once; each robot gets its own
@@ -578,7 +604,7 @@ impl World {
         let (t, base_ms) = (self.t_us, self.base_ms());
         let hits = self
             .leader_position()
-            .map(|at| self.scanner.scan(at, &self.map))
+            .map(|at| self.scanner.scan(at, &self.map, &self.mover_states))
             .unwrap_or_default();
         if let Some(external) = &mut self.external {
             external.scan = hits;
@@ -664,6 +690,7 @@ impl World {
             body.params.footprint,
             &self.map,
             neighbours,
+            &self.mover_states,
         );
         let r = &mut self.robots[i];
         let mut newest = None;
@@ -704,7 +731,7 @@ impl World {
             None => &station,
         };
         self.recorder
-            .observe(self.t_us, &self.robots, &self.map, view);
+            .observe(self.t_us, &self.robots, &self.map, &self.mover_states, view);
     }
 
     /// Whether the leader has arrived: the station's planner says so, or, with an

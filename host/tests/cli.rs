@@ -94,6 +94,26 @@ fn bad_files_name_file_line_and_field() {
             GOOD.replace("k_a = 1.0", "k_a = nan"),
             "field `planner.k_a`: must be a finite number > 0",
         ),
+        (
+            "mover-kind.toml",
+            format!("{GOOD}\n[[movers]]\nkind = \"dog\"\npath = [[1.0, 1.0]]\nspeed = 1.0\n"),
+            "field `movers[0].kind`: unknown variant `dog`",
+        ),
+        (
+            "mover-pause.toml",
+            format!("{GOOD}\n[[movers]]\nkind = \"pedestrian\"\npath = [[1.0, 1.0], [1.0, 9.0]]\nspeed = 1.0\npauses = [{{ at = 2, for_s = 20.0 }}]\n"),
+            "field `movers[0].pauses[0].at`: point 2 of a 2-point path",
+        ),
+        (
+            "mover-shape.toml",
+            format!("{GOOD}\n[[movers]]\nkind = \"vehicle\"\nlength = 4.5\npath = [[1.0, 1.0]]\nspeed = 1.0\n"),
+            "field `movers[0]`: a footprint is `radius` (a circle) or `length` and `width` (a rectangle)",
+        ),
+        (
+            "crowd.toml",
+            format!("{GOOD}\n[[crowds]]\narea = {{ min = [9.0, 0.0], max = [0.0, 9.0] }}\ndensity = 0.1\n"),
+            "field `crowds[0].area`: `min` must lie below and left of `max`",
+        ),
     ];
     for (name, text, expected) in cases {
         let (code, err) = check_text(name, text);

@@ -96,6 +96,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
     super::create_parent(&mcap_path)?;
     // Recorded while the simulation runs, on a thread of its own.
     let mut recording: Option<Result<Recording, String>> = None;
+    let empty_site = (scenario.clone(), options.clone());
     let result = simulate_with(scenario, options, |world| {
         match &mut recording {
             None => recording = Some(Recording::create(world, &mcap_path)),
@@ -133,7 +134,10 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         live.close()?;
     }
     bar.finish_and_clear();
-    let (report, world) = result.context("the simulation failed")?;
+    let (mut report, world) = result.context("the simulation failed")?;
+    report.movers.time_to_goal_empty_s =
+        hil_sim::run::empty_site_time(&empty_site.0, &empty_site.1)
+            .context("the run without movers failed")?;
 
     let report_path = args
         .report
@@ -282,6 +286,19 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Pat
         r.min_robot_separation_m,
         r.convergence_time_s.map_or("never".to_string(), |t| format!("{t:.1} s"))
     );
+    let m = &r.movers;
+    if m.count > 0 {
+        outln!(
+            "movers {} · contacts {} moving, {} standing · least person clearance {} m · intrusion {:.1} s · freezing {:.1} s · time to goal {} × the empty site's",
+            m.count,
+            m.contacts_moving,
+            m.contacts_standing,
+            num(m.min_person_clearance_m),
+            m.intrusion_s,
+            m.freezing_s,
+            num(m.slowdown(r.time_to_goal_s))
+        );
+    }
     for t in &r.transformations {
         outln!(
             "transformation to {} at {:.1} s ({}), done in {} s (paper: within 5 s)",

@@ -18,6 +18,7 @@ use crate::planner::PlannerParams;
 mod defaults;
 mod locate;
 mod lower;
+pub mod movers;
 mod reach;
 mod validate;
 
@@ -116,8 +117,17 @@ pub struct Scenario {
     pub localization: LocalizationSpec,
     #[serde(default)]
     pub perception: PerceptionSpec,
+    /// How the fleet yields to people and vehicles.
+    #[serde(default)]
+    pub yielding: YieldingSpec,
     #[serde(default)]
     pub sim: SimSpec,
+    /// People, cyclists and vehicles on paths of their own (simulation only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub movers: Vec<movers::MoverSpec>,
+    /// Crowds of social pedestrians (simulation only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub crowds: Vec<movers::CrowdSpec>,
     /// Faults and attacks the simulator injects (simulation only).
     #[serde(default)]
     pub faults: Vec<FaultSpec>,
@@ -618,6 +628,28 @@ impl Default for PerceptionSpec {
         Self {
             max_range_m: 30.0,
             forget_after_s: 30.0,
+        }
+    }
+}
+
+/// How the fleet yields to what moves (`docs/scenario.md#yielding`).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct YieldingSpec {
+    /// What the leader keeps from a person's footprint when passing, m.
+    pub personal_space_m: f64,
+    /// How far ahead in time the leader looks for a mover crossing its way, s.
+    pub horizon_s: f64,
+    /// A leader held by movers this long takes another way, if there is one, s.
+    pub replan_after_s: f64,
+}
+
+impl Default for YieldingSpec {
+    fn default() -> Self {
+        Self {
+            personal_space_m: 0.8,
+            horizon_s: 4.0,
+            replan_after_s: 20.0,
         }
     }
 }

@@ -3,6 +3,9 @@
 
 use glam::DVec2;
 
+use super::movers::{
+    CrowdSpec, MoverSpec, MAX_MOVERS, MAX_MOVER_SIZE, MAX_MOVER_SPEED, MAX_PATH_POINTS,
+};
 use super::*;
 
 /// How far from the site's origin any coordinate may lie, m: a city is smaller.
@@ -111,6 +114,7 @@ impl Scenario {
         self.check_route(&mut p, map_ok);
         self.check_gains(&mut p);
         self.check_sim(&mut p);
+        self.check_movers(&mut p);
         if p.1 > 0 {
             let more = format!("and {} more problems", p.1);
             p.0.push((String::new(), more));
@@ -149,6 +153,21 @@ impl Scenario {
         );
         ok &= p.at_most("robots", self.robots.len(), MAX_FLEET, "robots");
         ok &= p.at_most("faults", self.faults.len(), MAX_FAULTS, "faults");
+        let persons: usize = self
+            .crowds
+            .iter()
+            .map(|c| c.persons().min(MAX_MOVERS + 1))
+            .sum();
+        ok &= p.at_most(
+            "movers",
+            self.movers.len() + persons,
+            MAX_MOVERS,
+            "movers (crowds' persons included)",
+        );
+        for (i, m) in self.movers.iter().enumerate() {
+            let field = format!("movers[{i}].path");
+            ok &= p.at_most(&field, m.path.len(), MAX_PATH_POINTS, "points");
+        }
         ok && self.check_cover(p)
     }
 
@@ -524,6 +543,80 @@ impl Scenario {
             _ => {}
         }
     }
+}
+
+impl Scenario {
+    /// `[yielding]`, `[[movers]]` and `[[crowds]]`.
+    fn check_movers(&self, p: &mut Problems) {
+        let y = &self.yielding;
+        p.non_negative("yielding.personal_space_m", y.personal_space_m);
+        p.positive("yielding.horizon_s", y.horizon_s);
+        p.positive("yielding.replan_after_s", y.replan_after_s);
+        for (i, m) in self.movers.iter().enumerate() {
+            check_mover(p, &format!("movers[{i}]"), m);
+        }
+        for (i, c) in self.crowds.iter().enumerate() {
+            check_crowd(p, &format!("crowds[{i}]"), c);
+        }
+    }
+}
+
+fn check_mover(p: &mut Problems, field: &str, m: &MoverSpec) {
+    let at = |name: &str| format!("{field}.{name}");
+    if m.path.is_empty() {
+        p.fail(&at("path"), "give at least one point");
+    }
+    for (j, q) in m.path.iter().enumerate() {
+        p.coordinates(&format!("{field}.path[{j}]"), q);
+    }
+    if p.positive(&at("speed"), m.speed) && m.speed > MAX_MOVER_SPEED {
+        p.fail(&at("speed"), "must be at most 30 m/s");
+    }
+    p.non_negative(&at("start_s"), m.start_s);
+    match (m.radius, m.length, m.width) {
+        (None, None, None) => {}
+        (Some(r), None, None) => size(p, &at("radius"), r),
+        (None, Some(l), Some(w)) => {
+            size(p, &at("length"), l);
+            size(p, &at("width"), w);
+        }
+        _ => p.fail(
+            field,
+            "a footprint is `radius` (a circle) or `length` and `width` (a rectangle)",
+        ),
+    }
+    for (j, pause) in m.pauses.iter().enumerate() {
+        if pause.at >= m.path.len() {
+            let msg = format!("point {} of a {}-point path", pause.at, m.path.len());
+            p.fail(&format!("{field}.pauses[{j}].at"), &msg);
+        }
+        p.positive(&format!("{field}.pauses[{j}].for_s"), pause.for_s);
+    }
+}
+
+/// A footprint's radius or side: positive, at most [`MAX_MOVER_SIZE`].
+fn size(p: &mut Problems, field: &str, v: f64) {
+    if p.positive(field, v) && v > MAX_MOVER_SIZE {
+        p.fail(field, "must be at most 20 m");
+    }
+}
+
+fn check_crowd(p: &mut Problems, field: &str, c: &CrowdSpec) {
+    let at = |name: &str| format!("{field}.{name}");
+    let b = c.area;
+    if p.coordinates(&at("area.min"), &b.min) & p.coordinates(&at("area.max"), &b.max)
+        && (b.min[0] >= b.max[0] || b.min[1] >= b.max[1])
+    {
+        p.fail(&at("area"), "`min` must lie below and left of `max`");
+    }
+    if p.positive(&at("density"), c.density) && c.density > 2.0 {
+        p.fail(&at("density"), "at most 2 persons/m² (a packed crowd)");
+    }
+    if p.positive(&at("speed_mean"), c.speed_mean) && c.speed_mean > 3.0 {
+        p.fail(&at("speed_mean"), "a walking speed, at most 3 m/s");
+    }
+    p.non_negative(&at("speed_sd"), c.speed_sd);
+    p.non_negative(&at("start_s"), c.start_s);
 }
 
 /// One obstacle's fields, under `field`.

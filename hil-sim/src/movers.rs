@@ -1,0 +1,460 @@
+//! What moves on the site besides the robots: people, cyclists and vehicles on their
+//! paths, and crowds walking between random points of an area (`[[movers]]`,
+//! `[[crowds]]`). Stepped on the world's clock, seeded, nothing read from the wall clock.
+//!
+//! - **Oblivious** movers keep to their path at their speed whatever is in the way (the
+//!   worst case: they walk into a robot that stands).
+//! - **Social** movers follow the social force model (Helbing & Molnár 1995, with the
+//!   anisotropy of Helbing, Farkas & Vicsek 2000): each accelerates toward its desired
+//!   velocity (relaxation time `TAU`) and is pushed off the other movers, the robots and
+//!   the obstacles by forces that fall off exponentially with the gap between footprints;
+//!   what lies behind it pushes it less (`LAMBDA`). People's neighbours are looked up in
+//!   a grid of `CELL` cells, so a plaza of hundreds costs what their neighbourhoods do.
+
+use std::collections::HashMap;
+
+use base_station::map::Map;
+use base_station::scenario::movers::{
+    Behavior, CrowdSpec, MoverKind, MoverShape, MoverSpec, Repeat,
+};
+use base_station::scenario::Scenario;
+use glam::DVec2;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+/// Relaxation time toward the desired velocity, s.
+const TAU: f64 = 0.5;
+/// Strength and range of the push between movers (and from robots), m/s², m.
+const A_AGENT: f64 = 2.1;
+const B_AGENT: f64 = 0.3;
+/// A robot pushes harder: people keep further from machines.
+const A_ROBOT: f64 = 4.0;
+/// Strength and range of the push from obstacles, m/s², m.
+const A_WALL: f64 = 5.0;
+const B_WALL: f64 = 0.2;
+/// How much what lies behind pushes, relative to what lies ahead.
+const LAMBDA: f64 = 0.35;
+/// Forces are summed over what lies within this of a mover, m.
+const INTERACTION: f64 = 3.0;
+/// Neighbour grid cell, m (≥ `INTERACTION`).
+const CELL: f64 = 3.0;
+/// A social mover walks at most this much faster than it wants to.
+const MAX_SPEED_FACTOR: f64 = 1.3;
+/// A path point is reached within this, m.
+const REACHED: f64 = 0.25;
+
+/// A mover now: where it is, which way it faces, how it moves, its footprint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoverState {
+    pub index: usize,
+    pub kind: MoverKind,
+    pub position: DVec2,
+    pub velocity: DVec2,
+    /// Which way it faces (its way, for a rectangle), rad.
+    pub heading: f64,
+    pub shape: MoverShape,
+}
+
+impl MoverState {
+    /// The distance from `p` to its footprint (negative inside).
+    pub fn distance(&self, p: DVec2) -> f64 {
+        match self.shape {
+            MoverShape::Circle { radius } => (p - self.position).length() - radius,
+            MoverShape::Rectangle { length, width } => {
+                let local = (p - self.position).rotate(DVec2::from_angle(-self.heading));
+                let d = local.abs() - DVec2::new(0.5 * length, 0.5 * width);
+                d.max(DVec2::ZERO).length() + d.x.max(d.y).min(0.0)
+            }
+        }
+    }
+
+    /// Distance along the unit ray from `o` in `dir` to its footprint, if it hits.
+    pub fn ray(&self, o: DVec2, dir: DVec2) -> Option<f64> {
+        match self.shape {
+            MoverShape::Circle { radius } => crate::ring::ray_circle(o, dir, self.position, radius),
+            MoverShape::Rectangle { length, width } => {
+                let turn = DVec2::from_angle(-self.heading);
+                let (lo, ld) = ((o - self.position).rotate(turn), dir.rotate(turn));
+                let half = DVec2::new(0.5 * length, 0.5 * width);
+                // Slabs: where the ray is inside both pairs of sides.
+                let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+                for (p, d, h) in [(lo.x, ld.x, half.x), (lo.y, ld.y, half.y)] {
+                    if d.abs() < 1e-12 {
+                        if p.abs() > h {
+                            return None;
+                        }
+                        continue;
+                    }
+                    let (a, b) = ((-h - p) / d, (h - p) / d);
+                    t0 = t0.max(a.min(b));
+                    t1 = t1.min(a.max(b));
+                }
+                (t0 <= t1).then_some(t0)
+            }
+        }
+    }
+}
+
+/// Where a mover is going next along its path.
+#[derive(Debug, Clone)]
+enum Way {
+    /// A path of its own: the point it makes for and which way it goes along the path.
+    Path { next: usize, forward: bool },
+    /// A crowd's: a random point of the area, the crowd's random source.
+    Wander { goal: DVec2, crowd: usize },
+}
+
+#[derive(Debug, Clone)]
+struct Mover {
+    kind: MoverKind,
+    shape: MoverShape,
+    behavior: Behavior,
+    path: Vec<DVec2>,
+    repeat: Repeat,
+    speed: f64,
+    start_s: f64,
+    /// (path point, seconds): stops not yet made.
+    pauses: Vec<(usize, f64)>,
+    way: Way,
+    position: DVec2,
+    velocity: DVec2,
+    heading: f64,
+    /// Standing until then, s.
+    paused_until: f64,
+    /// At the end of a path walked once.
+    done: bool,
+}
+
+/// A crowd's area and random source.
+#[derive(Debug, Clone)]
+struct Crowd {
+    min: DVec2,
+    max: DVec2,
+    rng: ChaCha8Rng,
+}
+
+impl Crowd {
+    fn point(&mut self) -> DVec2 {
+        DVec2::new(
+            self.rng.random_range(self.min.x..self.max.x),
+            self.rng.random_range(self.min.y..self.max.y),
+        )
+    }
+}
+
+/// Everything that moves on the site.
+#[derive(Debug, Clone, Default)]
+pub struct Movers {
+    movers: Vec<Mover>,
+    crowds: Vec<Crowd>,
+}
+
+fn from_spec(spec: &MoverSpec) -> Mover {
+    let path = spec.points();
+    let start = path.first().copied().unwrap_or_default();
+    let heading = path.get(1).map_or(0.0, |p| (*p - start).to_angle());
+    Mover {
+        kind: spec.kind,
+        shape: spec.shape(),
+        behavior: spec.behavior,
+        repeat: spec.repeat,
+        speed: spec.speed,
+        start_s: spec.start_s,
+        pauses: spec.pauses.iter().map(|p| (p.at, p.for_s)).collect(),
+        way: Way::Path {
+            next: 1.min(path.len() - 1),
+            forward: true,
+        },
+        position: start,
+        velocity: DVec2::ZERO,
+        heading,
+        paused_until: f64::NEG_INFINITY,
+        done: path.len() < 2,
+        path,
+    }
+}
+
+impl Movers {
+    /// The scenario's movers, and its crowds placed at random (seeded by each crowd's
+    /// seed and the run's) where the site is free and no robot starts.
+    pub fn new(scenario: &Scenario, site: &Map, seed: u64) -> Self {
+        let mut movers: Vec<Mover> = scenario.movers.iter().map(from_spec).collect();
+        let mut crowds = Vec::new();
+        let starts: Vec<DVec2> = scenario
+            .robots
+            .iter()
+            .map(|r| DVec2::new(r.start.x, r.start.y))
+            .collect();
+        for (k, spec) in scenario.crowds.iter().enumerate() {
+            let mut crowd = Crowd {
+                min: DVec2::from(spec.area.min),
+                max: DVec2::from(spec.area.max),
+                rng: ChaCha8Rng::seed_from_u64(spec.seed ^ seed.rotate_left(17) ^ k as u64),
+            };
+            let placed = place_crowd(spec, &mut crowd, site, &starts, k);
+            movers.extend(placed);
+            crowds.push(crowd);
+        }
+        Self { movers, crowds }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.movers.is_empty()
+    }
+
+    /// How many there are over the run (crowds' persons included).
+    pub fn len(&self) -> usize {
+        self.movers.len()
+    }
+
+    /// Every mover on the site now (those not started yet are not).
+    pub fn states(&self, t_s: f64) -> impl Iterator<Item = MoverState> + '_ {
+        self.movers
+            .iter()
+            .enumerate()
+            .filter(move |(_, m)| t_s >= m.start_s)
+            .map(|(index, m)| MoverState {
+                index,
+                kind: m.kind,
+                position: m.position,
+                velocity: m.velocity,
+                heading: m.heading,
+                shape: m.shape,
+            })
+    }
+
+    /// One step of `dt` ending at `t_s`. `robots`: each robot's position and footprint
+    /// radius; `site`: the obstacles.
+    pub fn step(&mut self, t_s: f64, dt: f64, robots: &[(DVec2, f64)], site: &Map) {
+        let grid = self.grid(t_s);
+        let forces: Vec<DVec2> = (0..self.movers.len())
+            .map(|i| self.social_force(i, t_s, &grid, robots, site))
+            .collect();
+        for (i, force) in forces.into_iter().enumerate() {
+            if t_s < self.movers[i].start_s {
+                continue;
+            }
+            let desired = self.desired_velocity(i, t_s);
+            let m = &mut self.movers[i];
+            m.velocity = match m.behavior {
+                Behavior::Oblivious => desired,
+                Behavior::Social => {
+                    let v = m.velocity + ((desired - m.velocity) / TAU + force) * dt;
+                    v.clamp_length_max(MAX_SPEED_FACTOR * m.speed)
+                }
+            };
+            m.position += m.velocity * dt;
+            if m.velocity.length() > 0.05 {
+                m.heading = m.velocity.to_angle();
+            }
+        }
+    }
+
+    /// The movers on the site by grid cell.
+    fn grid(&self, t_s: f64) -> HashMap<(i64, i64), Vec<usize>> {
+        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        for (i, m) in self.movers.iter().enumerate() {
+            if t_s >= m.start_s {
+                grid.entry(cell(m.position)).or_default().push(i);
+            }
+        }
+        grid
+    }
+
+    /// Where mover `i` wants to go and how fast: along its path (or to its crowd's goal),
+    /// standing while it pauses or is done. Advances its way when it reaches a point.
+    fn desired_velocity(&mut self, i: usize, t_s: f64) -> DVec2 {
+        let Some(target) = self.target(i, t_s) else {
+            return DVec2::ZERO;
+        };
+        let m = &self.movers[i];
+        let to = target - m.position;
+        to.normalize_or_zero() * m.speed.min(to.length() / TAU.max(0.1) + 0.1)
+    }
+
+    /// The point mover `i` makes for now, passing the points it has reached.
+    fn target(&mut self, i: usize, t_s: f64) -> Option<DVec2> {
+        let m = &mut self.movers[i];
+        if m.done || t_s < m.paused_until {
+            return None;
+        }
+        match m.way.clone() {
+            Way::Wander { goal, crowd } => {
+                if (goal - m.position).length() > REACHED {
+                    return Some(goal);
+                }
+                let goal = self.crowds[crowd].point();
+                self.movers[i].way = Way::Wander { goal, crowd };
+                Some(goal)
+            }
+            Way::Path { next, forward } => {
+                let point = m.path[next];
+                if (point - m.position).length() > REACHED {
+                    return Some(point);
+                }
+                if let Some(k) = m.pauses.iter().position(|(at, _)| *at == next) {
+                    let (_, for_s) = m.pauses.remove(k);
+                    m.paused_until = t_s + for_s;
+                }
+                match advance(next, forward, m.path.len(), m.repeat) {
+                    Some((next, forward)) => m.way = Way::Path { next, forward },
+                    None => m.done = true,
+                }
+                None
+            }
+        }
+    }
+
+    /// The push on mover `i` from the other movers, the robots and the obstacles
+    /// (social movers only; zero for the oblivious).
+    fn social_force(
+        &self,
+        i: usize,
+        t_s: f64,
+        grid: &HashMap<(i64, i64), Vec<usize>>,
+        robots: &[(DVec2, f64)],
+        site: &Map,
+    ) -> DVec2 {
+        let m = &self.movers[i];
+        if m.behavior == Behavior::Oblivious || t_s < m.start_s {
+            return DVec2::ZERO;
+        }
+        let facing = DVec2::from_angle(m.heading);
+        let r = m.shape.reach();
+        let push = |from: DVec2, gap: f64, a: f64, b: f64| {
+            let away = (m.position - from).normalize_or_zero();
+            // Less from behind: (λ + (1 − λ)(1 + cos φ)/2), φ between its way and the other.
+            let cos = (-away).dot(facing);
+            let weight = LAMBDA + (1.0 - LAMBDA) * 0.5 * (1.0 + cos);
+            away * a * (-gap / b).exp() * weight
+        };
+        let mut force = DVec2::ZERO;
+        let (cx, cy) = cell(m.position);
+        for j in (-1..=1)
+            .flat_map(|dx| (-1..=1).map(move |dy| (cx + dx, cy + dy)))
+            .filter_map(|c| grid.get(&c))
+            .flatten()
+            .filter(|j| **j != i)
+        {
+            let o = &self.movers[*j];
+            let gap = (o.position - m.position).length() - r - o.shape.reach();
+            if gap < INTERACTION {
+                force += push(o.position, gap, A_AGENT, B_AGENT);
+            }
+        }
+        for (p, radius) in robots {
+            let gap = (*p - m.position).length() - r - radius;
+            if gap < INTERACTION {
+                force += push(*p, gap, A_ROBOT, B_AGENT);
+            }
+        }
+        if let Some(wall) = site.nearest(m.position, INTERACTION) {
+            let gap = wall.distance - r;
+            force += wall.normal * A_WALL * (-gap / B_WALL).exp();
+        }
+        force
+    }
+}
+
+/// The next point along a path of `len` points after `next` (reached), going `forward`;
+/// `None` at the end of a path walked once.
+fn advance(next: usize, forward: bool, len: usize, repeat: Repeat) -> Option<(usize, bool)> {
+    let last = len - 1;
+    match (repeat, forward) {
+        (_, true) if next < last => Some((next + 1, true)),
+        (_, false) if next > 0 => Some((next - 1, false)),
+        (Repeat::Once, _) => None,
+        (Repeat::Loop, _) => Some((0, true)),
+        (Repeat::BackAndForth, true) => Some((last.saturating_sub(1), false)),
+        (Repeat::BackAndForth, false) => Some((1.min(last), true)),
+    }
+}
+
+fn cell(p: DVec2) -> (i64, i64) {
+    ((p.x / CELL).floor() as i64, (p.y / CELL).floor() as i64)
+}
+
+/// A crowd's persons, at random points of its area where the site leaves room and no
+/// robot starts within 2 m, each walking to a random point, at a speed drawn for it.
+fn place_crowd(
+    spec: &CrowdSpec,
+    crowd: &mut Crowd,
+    site: &Map,
+    starts: &[DVec2],
+    index: usize,
+) -> Vec<Mover> {
+    let radius = 0.3;
+    let speeds = Normal::new(spec.speed_mean, spec.speed_sd.max(1e-9)).expect("σ ≥ 0");
+    let mut placed: Vec<Mover> = Vec::new();
+    for _ in 0..spec.persons() {
+        // A few tries for a free spot; a packed area takes what it gets.
+        let mut at = crowd.point();
+        for _ in 0..20 {
+            let free = site.clearance(at, radius + 0.2) >= radius + 0.2
+                && starts.iter().all(|s| s.distance(at) > 2.0)
+                && placed
+                    .iter()
+                    .all(|o| o.position.distance(at) > 2.0 * radius + 0.1);
+            if free {
+                break;
+            }
+            at = crowd.point();
+        }
+        let speed = speeds.sample(&mut crowd.rng).clamp(0.5, 2.0);
+        let goal = crowd.point();
+        placed.push(Mover {
+            kind: MoverKind::Pedestrian,
+            shape: MoverShape::Circle { radius },
+            behavior: spec.behavior,
+            path: vec![at],
+            repeat: Repeat::Once,
+            speed,
+            start_s: spec.start_s,
+            pauses: Vec::new(),
+            way: Way::Wander { goal, crowd: index },
+            position: at,
+            velocity: DVec2::ZERO,
+            heading: (goal - at).to_angle(),
+            paused_until: f64::NEG_INFINITY,
+            done: false,
+        });
+    }
+    placed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paths_are_walked_once_in_a_loop_or_back_and_forth() {
+        assert_eq!(advance(1, true, 3, Repeat::Once), Some((2, true)));
+        assert_eq!(advance(2, true, 3, Repeat::Once), None);
+        assert_eq!(advance(2, true, 3, Repeat::Loop), Some((0, true)));
+        assert_eq!(advance(2, true, 3, Repeat::BackAndForth), Some((1, false)));
+        assert_eq!(advance(0, false, 3, Repeat::BackAndForth), Some((1, true)));
+    }
+
+    #[test]
+    fn footprints_are_measured_and_cast_against() {
+        let car = MoverState {
+            index: 0,
+            kind: MoverKind::Vehicle,
+            position: DVec2::new(10.0, 0.0),
+            velocity: DVec2::ZERO,
+            heading: std::f64::consts::FRAC_PI_2,
+            shape: MoverShape::Rectangle {
+                length: 4.0,
+                width: 2.0,
+            },
+        };
+        // Along y it is 4 m long, across 2 m wide.
+        assert!((car.distance(DVec2::new(10.0, 3.0)) - 1.0).abs() < 1e-9);
+        assert!((car.distance(DVec2::new(12.0, 0.0)) - 1.0).abs() < 1e-9);
+        assert!(car.distance(DVec2::new(10.0, 0.0)) < 0.0);
+        let hit = car.ray(DVec2::ZERO, DVec2::X).unwrap();
+        assert!((hit - 9.0).abs() < 1e-9, "{hit}");
+        assert_eq!(car.ray(DVec2::ZERO, DVec2::Y), None);
+    }
+}
