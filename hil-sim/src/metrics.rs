@@ -21,6 +21,7 @@ use serde::Serialize;
 use crate::movers::MoverState;
 use crate::plant::Body;
 use base_station::scenario::movers::MoverKind;
+use base_station::tracking::TrackView;
 
 /// Samples for the figure, the trace and the report: 10 Hz.
 pub const SAMPLE_PERIOD_US: u64 = 100_000;
@@ -48,6 +49,10 @@ pub trait FleetView {
     /// Slot `k`'s (L, φ), wide and line.
     fn slot(&self, k: usize) -> Option<SlotPair>;
     fn mode(&self, robot: u16) -> Option<RobotMode>;
+    /// What the station tracks at `t_us` (none where the station is not in this process).
+    fn tracks(&self, _t_us: u64) -> Vec<TrackView> {
+        Vec::new()
+    }
 }
 
 /// The base station in the world, whose clock started at `epoch_us` of the world's.
@@ -74,6 +79,10 @@ impl FleetView for StationView<'_> {
             .get(&robot)
             .and_then(|s| s.telemetry)
             .map(|t| t.mode)
+    }
+    fn tracks(&self, t_us: u64) -> Vec<TrackView> {
+        let now_ms = (t_us.saturating_sub(self.epoch_us) / 1000) as u32;
+        self.station.tracks(now_ms).collect()
     }
 }
 
@@ -103,6 +112,12 @@ pub struct Sample {
     pub shape: &'static str,
     /// Some robot has an obstacle within R_det.
     pub near_obstacle: bool,
+    /// The movers on the site (the truth).
+    #[serde(skip)]
+    pub movers: Vec<MoverState>,
+    /// What the station tracked (what it believed).
+    #[serde(skip)]
+    pub tracks: Vec<TrackView>,
 }
 
 /// The leader's driven path, newest last, points at least `SPACING` apart.
@@ -174,9 +189,27 @@ pub struct MoverMeasures {
     pub intrusion_s: f64,
     /// Time the leader stood with a person within 1.5 m of its footprint, s.
     pub freezing_s: f64,
+    /// The first [`MAX_CONTACTS_LISTED`] contacts, in order.
+    pub contacts: Vec<MoverContact>,
     /// Who touched whom: (robot, mover).
     #[serde(skip)]
     touching: HashSet<(usize, usize)>,
+}
+
+/// Most mover contacts listed one by one.
+pub const MAX_CONTACTS_LISTED: usize = 100;
+
+/// One contact of a robot with a mover.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MoverContact {
+    pub at_s: f64,
+    /// The robot's index in the run (its order in the scenario).
+    pub robot: usize,
+    /// The mover's index (`[[movers]]` first, then each crowd's persons).
+    pub mover: usize,
+    pub kind: MoverKind,
+    /// Whether the robot moved (faster than 0.05 m/s).
+    pub robot_moving: bool,
 }
 
 impl MoverMeasures {
@@ -188,7 +221,13 @@ impl MoverMeasures {
     }
 
     /// One physics step of `dt`: `robots` as (position, footprint, speed, leads).
-    fn observe(&mut self, robots: &[(DVec2, f64, f64, bool)], movers: &[MoverState], dt: f64) {
+    fn observe(
+        &mut self,
+        t_s: f64,
+        robots: &[(DVec2, f64, f64, bool)],
+        movers: &[MoverState],
+        dt: f64,
+    ) {
         let (mut intruding, mut freezing) = (false, false);
         for (i, (p, fp, v, leads)) in robots.iter().enumerate() {
             let moving = v.abs() > STANDING;
@@ -208,6 +247,15 @@ impl MoverMeasures {
                         self.contacts_moving += 1;
                     } else {
                         self.contacts_standing += 1;
+                    }
+                    if self.contacts.len() < MAX_CONTACTS_LISTED {
+                        self.contacts.push(MoverContact {
+                            at_s: t_s,
+                            robot: i,
+                            mover: m.index,
+                            kind: m.kind,
+                            robot_moving: moving,
+                        });
                     }
                 }
             }
@@ -282,7 +330,7 @@ impl Recorder {
                     (DVec2::new(b.x, b.y), self.footprint, b.twist().0, leads)
                 })
                 .collect();
-            self.movers.observe(&bodies, movers, dt);
+            self.movers.observe(t_us as f64 / 1e6, &bodies, movers, dt);
         }
         let fp = self.footprint;
         let reach = self.r_det + fp;
@@ -323,6 +371,10 @@ impl Recorder {
             return;
         }
         self.sample(t_us, robots, leader, view, near);
+        if let Some(last) = self.samples.last_mut() {
+            last.movers = movers.to_vec();
+            last.tracks = view.tracks(t_us);
+        }
     }
 
     fn sample<R: Tracked>(
@@ -390,6 +442,8 @@ impl Recorder {
             blend,
             shape,
             near_obstacle,
+            movers: Vec::new(),
+            tracks: Vec::new(),
         });
     }
 }

@@ -28,8 +28,13 @@ const TAU: f64 = 0.5;
 /// Strength and range of the push between movers (and from robots), m/s², m.
 const A_AGENT: f64 = 2.1;
 const B_AGENT: f64 = 0.3;
-/// A robot pushes harder: people keep further from machines.
-const A_ROBOT: f64 = 4.0;
+/// A robot pushes harder and farther: people keep further from machines.
+const A_ROBOT: f64 = 10.0;
+const B_ROBOT: f64 = 0.5;
+/// The step aside from a robot ahead, as a share of its push.
+const SIDESTEP: f64 = 0.5;
+/// Bodies in contact push apart hard (Helbing, Farkas & Vicsek 2000: k / m), 1/s².
+const K_BODY: f64 = 1500.0;
 /// Strength and range of the push from obstacles, m/s², m.
 const A_WALL: f64 = 5.0;
 const B_WALL: f64 = 0.2;
@@ -102,7 +107,12 @@ enum Way {
     /// A path of its own: the point it makes for and which way it goes along the path.
     Path { next: usize, forward: bool },
     /// A crowd's: a random point of the area, the crowd's random source.
-    Wander { goal: DVec2, crowd: usize },
+    /// `until`: when it gives the goal up (something stands on it, or in the way), s.
+    Wander {
+        goal: DVec2,
+        crowd: usize,
+        until: f64,
+    },
 }
 
 #[derive(Debug, Clone)]
@@ -235,7 +245,7 @@ impl Movers {
             if t_s < self.movers[i].start_s {
                 continue;
             }
-            let desired = self.desired_velocity(i, t_s);
+            let desired = self.desired_velocity(i, t_s, robots);
             let m = &mut self.movers[i];
             m.velocity = match m.behavior {
                 Behavior::Oblivious => desired,
@@ -264,13 +274,19 @@ impl Movers {
 
     /// Where mover `i` wants to go and how fast: along its path (or to its crowd's goal),
     /// standing while it pauses or is done. Advances its way when it reaches a point.
-    fn desired_velocity(&mut self, i: usize, t_s: f64) -> DVec2 {
+    /// A social mover heads round the robots in its way (see [`heading_round`]).
+    fn desired_velocity(&mut self, i: usize, t_s: f64, robots: &[(DVec2, f64)]) -> DVec2 {
         let Some(target) = self.target(i, t_s) else {
             return DVec2::ZERO;
         };
         let m = &self.movers[i];
         let to = target - m.position;
-        to.normalize_or_zero() * m.speed.min(to.length() / TAU.max(0.1) + 0.1)
+        let speed = m.speed.min(to.length() / TAU.max(0.1) + 0.1);
+        let way = match m.behavior {
+            Behavior::Oblivious => to.normalize_or_zero(),
+            Behavior::Social => heading_round(m.position, m.shape.reach(), target, robots),
+        };
+        way * speed
     }
 
     /// The point mover `i` makes for now, passing the points it has reached.
@@ -280,12 +296,14 @@ impl Movers {
             return None;
         }
         match m.way.clone() {
-            Way::Wander { goal, crowd } => {
-                if (goal - m.position).length() > REACHED {
+            Way::Wander { goal, crowd, until } => {
+                if (goal - m.position).length() > REACHED && t_s < until {
                     return Some(goal);
                 }
+                let (from, speed) = (m.position, m.speed);
                 let goal = self.crowds[crowd].point();
-                self.movers[i].way = Way::Wander { goal, crowd };
+                let until = t_s + give_up_after(from, goal, speed);
+                self.movers[i].way = Way::Wander { goal, crowd, until };
                 Some(goal)
             }
             Way::Path { next, forward } => {
@@ -342,11 +360,22 @@ impl Movers {
             if gap < INTERACTION {
                 force += push(o.position, gap, A_AGENT, B_AGENT);
             }
+            if gap < 0.0 {
+                force += (m.position - o.position).normalize_or_zero() * K_BODY * -gap;
+            }
         }
         for (p, radius) in robots {
             let gap = (*p - m.position).length() - r - radius;
             if gap < INTERACTION {
-                force += push(*p, gap, A_ROBOT, B_AGENT);
+                // And a step to their right where the machine is ahead of them: people
+                // go round a machine in their way instead of standing against it (a
+                // head-on push has no side to it).
+                let away = push(*p, gap, A_ROBOT, B_ROBOT);
+                let ahead = (*p - m.position).normalize_or_zero().dot(facing).max(0.0);
+                force += away + -facing.perp() * away.length() * SIDESTEP * ahead;
+            }
+            if gap < 0.0 {
+                force += (m.position - *p).normalize_or_zero() * K_BODY * -gap;
             }
         }
         if let Some(wall) = site.nearest(m.position, INTERACTION) {
@@ -369,6 +398,58 @@ fn advance(next: usize, forward: bool, len: usize, repeat: Repeat) -> Option<(us
         (Repeat::BackAndForth, true) => Some((last.saturating_sub(1), false)),
         (Repeat::BackAndForth, false) => Some((1.min(last), true)),
     }
+}
+
+/// The way a person heads for `goal` from `at` with robots about (Moussaïd, Helbing &
+/// Theraulaz 2011: of the headings within 90° of the goal's, the one that brings them
+/// nearest to it, walking on until [`LOOK_AHEAD`] or until they would come within
+/// [`PASS_ROBOT`] of a robot's footprint). People go round a machine that stands in their
+/// way instead of pressing against it.
+fn heading_round(at: DVec2, reach: f64, goal: DVec2, robots: &[(DVec2, f64)]) -> DVec2 {
+    let to = goal - at;
+    let d_goal = to.length();
+    let straight = to.normalize_or_zero();
+    let look = d_goal.min(LOOK_AHEAD);
+    let near: Vec<(DVec2, f64)> = robots
+        .iter()
+        .filter(|(p, r)| p.distance(at) < look + r + reach + PASS_ROBOT)
+        .map(|(p, r)| (*p, r + reach + PASS_ROBOT))
+        .collect();
+    if near.is_empty() || straight == DVec2::ZERO {
+        return straight;
+    }
+    // Already closer than that: no step toward the robot.
+    let free = |dir: DVec2| {
+        near.iter()
+            .filter_map(|(p, r)| {
+                let inside = p.distance(at) < *r;
+                if inside {
+                    ((*p - at).dot(dir) > 0.0).then_some(0.0)
+                } else {
+                    crate::ring::ray_circle(at, dir, *p, *r)
+                }
+            })
+            .fold(look, f64::min)
+    };
+    (-9..=9)
+        .map(|k| straight.rotate(DVec2::from_angle(k as f64 * 10f64.to_radians())))
+        .map(|dir| {
+            let f = free(dir);
+            ((at + dir * f).distance(goal), dir)
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map_or(straight, |(_, dir)| dir)
+}
+
+/// How far ahead a person looks for a robot in the way, m.
+const LOOK_AHEAD: f64 = 6.0;
+/// What a person keeps from a robot's footprint when going round it, m.
+const PASS_ROBOT: f64 = 0.5;
+
+/// A crowd's person gives a goal up after twice the time it takes to walk there, and 5 s
+/// more: someone stands on it, or the way is blocked.
+fn give_up_after(from: DVec2, goal: DVec2, speed: f64) -> f64 {
+    2.0 * from.distance(goal) / speed.max(0.1) + 5.0
 }
 
 fn cell(p: DVec2) -> (i64, i64) {
@@ -412,7 +493,11 @@ fn place_crowd(
             speed,
             start_s: spec.start_s,
             pauses: Vec::new(),
-            way: Way::Wander { goal, crowd: index },
+            way: Way::Wander {
+                goal,
+                crowd: index,
+                until: spec.start_s + give_up_after(at, goal, speed),
+            },
             position: at,
             velocity: DVec2::ZERO,
             heading: (goal - at).to_angle(),

@@ -8,6 +8,11 @@ use base_station::scenario::Role;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
+use base_station::scenario::movers::MoverShape;
+use base_station::tracking::Motion;
+use glam::DVec2;
+
+use crate::movers::MoverState;
 use crate::report::Report;
 use crate::world::World;
 
@@ -135,6 +140,20 @@ where
         report.collisions,
         report.min_obstacle_clearance_m
     );
+    let title = if report.movers.count > 0 {
+        format!(
+            "{title}; {} movers: contacts {} moving, {} standing; least person clearance {}",
+            report.movers.count,
+            report.movers.contacts_moving,
+            report.movers.contacts_standing,
+            report
+                .movers
+                .min_person_clearance_m
+                .map_or("—".to_string(), |c| format!("{c:.2} m"))
+        )
+    } else {
+        title
+    };
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 16))
         .margin(10)
@@ -150,6 +169,7 @@ where
         .y_desc("y (m)")
         .draw()?;
     draw_site(&mut chart, world)?;
+    draw_movers(&mut chart, world, report)?;
     draw_paths(&mut chart, world)?;
     draw_snapshots(&mut chart, world)?;
     legend(&mut chart, SeriesLabelPosition::UpperLeft)
@@ -224,6 +244,96 @@ where
             .legend(move |(x, y)| {
                 PathElement::new([(x, y), (x + 16, y)], color(i).stroke_width(2))
             });
+    }
+    Ok(())
+}
+
+/// A mover's footprint outline, closed.
+fn outline(m: &MoverState) -> Vec<(f64, f64)> {
+    match m.shape {
+        MoverShape::Circle { radius } => circle(m.position.x, m.position.y, radius),
+        MoverShape::Rectangle { length, width } => {
+            let (l, w) = (0.5 * length, 0.5 * width);
+            [(l, w), (-l, w), (-l, -w), (l, -w), (l, w)]
+                .iter()
+                .map(|(x, y)| {
+                    let p = m.position + DVec2::new(*x, *y).rotate(DVec2::from_angle(m.heading));
+                    (p.x, p.y)
+                })
+                .collect()
+        }
+    }
+}
+
+/// The movers (the truth): each one's way in grey, its footprint every 10 s, a red cross
+/// where one touched a robot; the station's moving tracks every 10 s in orange, with a line to
+/// where their velocity takes them in a second.
+fn draw_movers<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+    report: &Report,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let samples = &world.recorder.samples;
+    if world.movers.is_empty() {
+        return Ok(());
+    }
+    let grey = RGBColor(120, 120, 120);
+    let orange = RGBColor(240, 140, 0);
+    for index in 0..world.movers.len() {
+        let way: Vec<(f64, f64)> = samples
+            .iter()
+            .filter_map(|s| s.movers.iter().find(|m| m.index == index))
+            .map(|m| (m.position.x, m.position.y))
+            .collect();
+        let series = chart.draw_series(LineSeries::new(way, grey.mix(0.35)))?;
+        if index == 0 {
+            series
+                .label("movers (truth): ways, footprints every 10 s")
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey));
+        }
+    }
+    let every = |period: f64| {
+        samples
+            .iter()
+            .filter(move |s| ((s.t * 10.0).round() as u64).is_multiple_of((period * 10.0) as u64))
+    };
+    for s in every(10.0) {
+        for m in &s.movers {
+            chart.draw_series(std::iter::once(Polygon::new(outline(m), grey.mix(0.25))))?;
+        }
+    }
+    let mut first = true;
+    for s in every(10.0) {
+        for t in s.tracks.iter().filter(|t| t.motion == Motion::Moving) {
+            let (p, q) = (t.position, t.at(1.0));
+            let series = chart.draw_series([
+                PathElement::new([(p.x, p.y), (q.x, q.y)], orange.stroke_width(2)),
+                PathElement::new(circle(p.x, p.y, t.radius.max(0.15)), orange.stroke_width(1)),
+            ])?;
+            if std::mem::take(&mut first) {
+                series
+                    .label("tracks (station): moving, velocity × 1 s, every 10 s")
+                    .legend(move |(x, y)| {
+                        PathElement::new([(x, y), (x + 16, y)], orange.stroke_width(2))
+                    });
+            }
+        }
+    }
+    for c in &report.movers.contacts {
+        let near = samples
+            .iter()
+            .min_by(|a, b| (a.t - c.at_s).abs().total_cmp(&(b.t - c.at_s).abs()));
+        let Some(m) = near.and_then(|s| s.movers.iter().find(|m| m.index == c.mover)) else {
+            continue;
+        };
+        chart.draw_series(std::iter::once(Cross::new(
+            (m.position.x, m.position.y),
+            6,
+            RED.stroke_width(2),
+        )))?;
     }
     Ok(())
 }

@@ -128,6 +128,8 @@ pub struct MoversReport {
     /// The same scenario and seed with nobody on the site: its time to goal (null: not
     /// run, or the goal not reached).
     pub time_to_goal_empty_s: Option<f64>,
+    /// The first 100 contacts, one by one.
+    pub contacts: Vec<crate::metrics::MoverContact>,
 }
 
 impl MoversReport {
@@ -146,6 +148,7 @@ impl MoversReport {
             intrusion_s: m.intrusion_s,
             freezing_s: m.freezing_s,
             time_to_goal_empty_s: None,
+            contacts: m.contacts.clone(),
         }
     }
 
@@ -532,6 +535,8 @@ mod tests {
                     blend: 0.0,
                     shape: shape(t),
                     near_obstacle: false,
+                    movers: Vec::new(),
+                    tracks: Vec::new(),
                 }
             })
             .collect()

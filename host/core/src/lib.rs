@@ -9,7 +9,8 @@
 //!   local layer ([`planner::apf`]), or the paper's pure field.
 //! - [`formation`]: slots, the switch to a line and back, the pace of a change; the
 //!   follower's geometry is the control core's.
-//! - [`perception`]: what the leader's scans found that the map does not hold.
+//! - [`perception`]: what the leader's scans found that the map does not hold;
+//!   [`tracking`]: which of it moves, and how fast.
 //! - [`localization`]: fixes from the site (NMEA, the line feed); [`seal`]: who may send
 //!   them (and scans): a key and a MAC per source.
 //! - [`scenario`]: scenario and site files, their validation and limits, and what they
@@ -29,4 +30,5 @@ pub mod recording;
 pub mod scenario;
 pub mod seal;
 pub mod station;
+pub mod tracking;
 pub mod transport;

@@ -3,8 +3,10 @@
 //! avoids and routes round.
 //!
 //! A hit within `EXPLAINED` of a mapped surface is the map's own obstacle and ignored;
-//! the others are kept one per `CELL`-sized cell, as discs of radius `CELL / 2` centred on
-//! the first hit of that cell ("marks").
+//! the others go to the tracker ([`crate::tracking`]), which says which stand still. Those
+//! are kept one per `CELL`-sized cell, as discs of radius `CELL / 2` centred on the first
+//! hit of that cell ("marks"), grown by the personal space where a person stopped; a mark
+//! belongs to its track, and goes when the track moves on.
 //!
 //! What a scan may claim is bounded, so no scan (nor a forged one) can stop a mission for
 //! good or blind the station to what is really there:
@@ -27,6 +29,7 @@ use serde::Serialize;
 
 use crate::geometry::Obstacle;
 use crate::map::Map;
+use crate::tracking::MarkTag;
 
 /// Side of the cells hits are merged in, m.
 pub const CELL: f64 = 0.2;
@@ -81,6 +84,8 @@ pub struct PerceptionCounts {
     pub forgotten: u64,
     /// Marks that made room for newer ones.
     pub evicted: u64,
+    /// Marks of things that stood and moved on.
+    pub released: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -88,6 +93,8 @@ struct Mark {
     obstacle: Obstacle,
     last_seen_ms: u32,
     source: u8,
+    /// The track whose hit it was, if a tracker judged it.
+    track: Option<u32>,
 }
 
 /// What a scan or the passing of time changed.
@@ -132,7 +139,8 @@ impl Perception {
     }
 
     /// Takes one scan of source `source` (its hits in the site frame), taken with the
-    /// leader at `leader` (`None`: not known, nothing is taken) at `now_ms`.
+    /// leader at `leader` (`None`: not known, nothing is taken) at `now_ms`, and marks
+    /// every hit the map does not explain (no tracker: everything seen stands).
     pub fn absorb(
         &mut self,
         hits: &[DVec2],
@@ -141,19 +149,35 @@ impl Perception {
         source: u8,
         now_ms: u32,
     ) -> Change {
-        let mut change = Change::default();
+        let unexplained = self.screen(hits, leader, known);
+        let marks: Vec<(DVec2, Option<MarkTag>)> =
+            unexplained.into_iter().map(|h| (h, None)).collect();
+        self.mark(&marks, source, now_ms)
+    }
+
+    /// The hits of a scan taken with the leader at `leader` that the leader can have
+    /// seen and the map does not explain (the rest counted).
+    pub fn screen(&mut self, hits: &[DVec2], leader: Option<DVec2>, known: &Map) -> Vec<DVec2> {
         let Some(leader) = leader else {
             self.counts.out_of_range += hits.len() as u64;
-            return change;
+            return Vec::new();
         };
+        let mut kept = Vec::with_capacity(hits.len());
         for &hit in hits {
             if !self.limits.plausible(hit, leader) {
                 self.counts.out_of_range += 1;
-                continue;
+            } else if known.clearance(hit, EXPLAINED) >= EXPLAINED {
+                kept.push(hit);
             }
-            if known.clearance(hit, EXPLAINED) < EXPLAINED {
-                continue;
-            }
+        }
+        kept
+    }
+
+    /// Marks each hit of `marks` (one per cell: a hit in a marked cell renews it), of
+    /// `source`, at `now_ms`; a tag says whose it is and the room it keeps.
+    pub fn mark(&mut self, marks: &[(DVec2, Option<MarkTag>)], source: u8, now_ms: u32) -> Change {
+        let mut change = Change::default();
+        for &(hit, tag) in marks {
             let cell = cell_of(hit);
             if let Some(mark) = self.marks.get_mut(&cell) {
                 if let Some(ages) = self.by_age.get_mut(&mark.source) {
@@ -173,7 +197,7 @@ impl Perception {
             }
             let obstacle = Obstacle::Circle {
                 center: hit,
-                radius: 0.5 * CELL,
+                radius: 0.5 * CELL + tag.map_or(0.0, |t| t.pad),
             };
             self.marks.insert(
                 cell,
@@ -181,6 +205,7 @@ impl Perception {
                     obstacle: obstacle.clone(),
                     last_seen_ms: now_ms,
                     source,
+                    track: tag.map(|t| t.track),
                 },
             );
             self.by_age
@@ -190,6 +215,26 @@ impl Perception {
             change.added.push(obstacle);
         }
         change
+    }
+
+    /// Forgets the marks of `tracks`: they moved on.
+    pub fn release(&mut self, tracks: &[u32]) -> Change {
+        if tracks.is_empty() {
+            return Change::default();
+        }
+        let mut cells: Vec<Cell> = self
+            .marks
+            .iter()
+            .filter(|(_, m)| m.track.is_some_and(|t| tracks.contains(&t)))
+            .map(|(c, _)| *c)
+            .collect();
+        cells.sort_unstable();
+        let removed: Vec<Obstacle> = cells.into_iter().filter_map(|c| self.remove(c)).collect();
+        self.counts.released += removed.len() as u64;
+        Change {
+            added: Vec::new(),
+            removed,
+        }
     }
 
     /// Forgets the mark seen longest ago (of `source` only, when given).

@@ -814,6 +814,26 @@ impl Planner {
         self.drive_along(now_s, dt, pose, s, map, speed_scale)
     }
 
+    /// Movers (a crowd filling a street) have held the leader: the disc they stand in is
+    /// marked blocked and the route planned again from `from`. A guess, as a stuck mark
+    /// is: forgotten where it leaves no way (the route then stays as it was).
+    pub fn avoid(&mut self, at: DVec2, radius: f64, from: DVec2, now_s: f64, map: &Map) {
+        let Some(routing) = self.routing.as_mut() else {
+            return;
+        };
+        tracing::info!(
+            x = at.x,
+            y = at.y,
+            radius,
+            "movers hold the way: planning round them"
+        );
+        routing.blocked.push((at, radius));
+        routing.replans += 1;
+        routing.route = None;
+        self.note(PlannerEvent::Replanned);
+        self.plan_route(from, now_s, map);
+    }
+
     /// The way ahead is blocked by something the map does not hold: the stretch ahead is
     /// marked blocked and the route planned again.
     fn replan_blocked(&mut self, s: f64, pos: DVec2, now_s: f64, map: &Map) {

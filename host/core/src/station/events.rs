@@ -69,6 +69,10 @@ pub enum StationEvent {
         robot: u16,
         at_ms: u32,
     },
+    /// Movers crossing the formation's way hold the leader (it slows to a standstill).
+    Yielding {
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -100,6 +104,7 @@ impl StationEvent {
                 (*at_ms, "follower_caught_up".into(), Some(*robot))
             }
             E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
+            E::Yielding { at_ms } => (*at_ms, "yielding".into(), Some(leader)),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }

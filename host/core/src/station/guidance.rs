@@ -39,6 +39,8 @@ pub struct Look {
     pub behind: Vec<DVec2>,
     /// How much the leader waits for a lagging follower: 1 not at all … 0.2.
     pub waiting: f64,
+    /// The path ahead of the leader, from where it is now.
+    pub ahead: Vec<DVec2>,
 }
 
 /// What [`Guidance::drive`] gives: the leader's command and what happened.
@@ -100,6 +102,12 @@ impl Guidance {
         self.planner.route()
     }
 
+    /// Movers have held the leader: a way round the disc (`at`, `radius`) they stand in,
+    /// from `from`, if the map has one.
+    pub fn avoid(&mut self, at: DVec2, radius: f64, from: DVec2, now_s: f64, world: &Map) {
+        self.planner.avoid(at, radius, from, now_s, world);
+    }
+
     /// Obstacles sensed on the way, and those forgotten since (`map`: what remains).
     pub fn sensed(&mut self, added: &[Obstacle], removed: &[Obstacle], map: &Map) {
         self.planner.remove_obstacles(removed, map);
@@ -146,6 +154,7 @@ impl Guidance {
             change: shape.change,
             behind,
             waiting,
+            ahead,
         }
     }
 

@@ -26,6 +26,7 @@ mod localize;
 mod operator;
 mod radio;
 mod smoothing;
+mod yielding;
 
 use glam::DVec2;
 use protocol::link::{Link, Timing};
@@ -44,12 +45,14 @@ use localize::OutgoingFix;
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
 pub use smoothing::TurnRateSmoother;
+pub use yielding::{Yield, Yielding, VEHICLE_SPACE_M};
 
 use crate::formation::{FormationManager, FormationSpec};
 use crate::map::Map;
 use crate::perception::{Change, Perception, PerceptionLimits};
 use crate::planner::route::Route;
 use crate::planner::{PlannerEvent, PlannerParams};
+use crate::tracking::{TrackView, Tracker};
 
 /// Most robots one base station serves.
 pub const MAX_ROBOTS: usize = 1024;
@@ -80,6 +83,8 @@ pub struct StationConfig {
     pub fixes: FixLimits,
     /// What the leader's scans may claim, and how long what they found is kept.
     pub perception: PerceptionLimits,
+    /// How the leader and the formation yield to what moves.
+    pub yielding: crate::scenario::YieldingSpec,
 }
 
 impl StationConfig {
@@ -100,6 +105,7 @@ impl StationConfig {
             period_ms: 100,
             fixes: FixLimits::from_spec(&s.localization),
             perception: PerceptionLimits::from_scenario(s),
+            yielding: s.yielding.clone(),
         }
     }
 }
@@ -137,6 +143,10 @@ pub struct BaseStation {
     gate: Gate,
     /// What the leader's scanner found that the map does not hold.
     perception: Perception,
+    /// What of it moves.
+    tracker: Tracker,
+    /// The leader's pace among what moves.
+    yielding: Yielding,
     /// The map and what was sensed: what the planner and the formation avoid.
     world: Map,
     outbox: Vec<u8>,
@@ -176,6 +186,8 @@ impl BaseStation {
         Self {
             guidance: Guidance::new(&cfg),
             perception: Perception::new(cfg.perception),
+            tracker: Tracker::new(cfg.yielding.personal_space_m),
+            yielding: Yielding::new(cfg.yielding.clone()),
             world: cfg.map.clone(),
             cfg,
             link,
@@ -246,10 +258,26 @@ impl BaseStation {
     /// it ([`crate::perception`]).
     pub fn sense(&mut self, hits: &[DVec2], now_ms: u32) {
         let leader = self.leader_estimate(now_ms).map(|l| l.pose.position);
-        let change = self
-            .perception
-            .absorb(hits, leader, &self.cfg.map, 0, now_ms);
+        let unexplained = self.perception.screen(hits, leader, &self.cfg.map);
+        let Some(origin) = leader else {
+            return;
+        };
+        let seen = self.tracker.observe(&unexplained, origin, now_ms);
+        let mut change = self.perception.release(&seen.released);
+        let marks: Vec<_> = seen.marks.iter().map(|(_, h, t)| (*h, Some(*t))).collect();
+        let added = self.perception.mark(&marks, 0, now_ms);
+        change.added = added.added;
+        change.removed.extend(added.removed);
         self.apply_sensed(change);
+    }
+
+    /// What the scans show, followed: each track predicted to `now_ms`.
+    pub fn tracks(&self, now_ms: u32) -> impl Iterator<Item = TrackView> + '_ {
+        self.tracker.views(now_ms)
+    }
+
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
     }
 
     /// What perception added or forgot, into guidance and the station's map.
@@ -302,9 +330,10 @@ impl BaseStation {
             self.broadcast_leader_state(&leader, (0.0, 0.0), 0.0, now_ms);
             return;
         }
+        let pace = self.yield_to_movers(&leader, &look, now_ms);
         let drive = self
             .guidance
-            .drive(now_s, leader.pose, look.waiting, &self.world);
+            .drive(now_s, leader.pose, look.waiting.min(pace), &self.world);
         self.report_planner(&drive.events, now_ms);
         self.command_leader(&leader, &drive, look.blend, now_ms);
     }
@@ -323,6 +352,7 @@ impl BaseStation {
         self.send_due_fixes(now_ms);
         let forgotten = self.perception.age(now_ms);
         self.apply_sensed(forgotten);
+        self.tracker.age(now_ms);
         self.check_fixes(now_ms);
     }
 
@@ -401,6 +431,45 @@ impl BaseStation {
         tracing::info!("fleet ready");
         self.events.push(StationEvent::FleetReady { at_ms: now_ms });
         true
+    }
+
+    /// The share of its pace the leader may use among what moves (1: nothing moves near).
+    fn yield_to_movers(&mut self, leader: &LeaderEstimate, look: &Look, now_ms: u32) -> f64 {
+        let movers: Vec<TrackView> = self.tracker.moving(now_ms).collect();
+        let positions = self.fleet.positions(now_ms);
+        let followers: Vec<Option<DVec2>> = self
+            .cfg
+            .followers
+            .iter()
+            .map(|id| positions.iter().find(|(r, _)| r == id).map(|(_, p)| *p))
+            .collect();
+        let fleet = yielding::Fleet {
+            leader: leader.pose,
+            v: leader.v,
+            max_speed: self.cfg.planner.max_speed,
+            max_accel: self.cfg.planner.max_accel,
+            footprint: self.guidance.formation().spec().footprint,
+            ahead: &look.ahead,
+            behind: &look.behind,
+            followers: &followers,
+            follower_speed: self.cfg.follower_speed,
+        };
+        let now_s = now_ms as f64 / 1000.0;
+        let y = self
+            .yielding
+            .decide(now_s, &fleet, self.guidance.formation(), &movers);
+        if y.began {
+            tracing::info!(
+                movers = movers.len(),
+                "yielding: the leader waits for movers"
+            );
+            self.events.push(StationEvent::Yielding { at_ms: now_ms });
+        }
+        if let Some((at, radius)) = y.avoid {
+            let from = leader.pose.position;
+            self.guidance.avoid(at, radius, from, now_s, &self.world);
+        }
+        y.share
     }
 
     /// The planner's events, as the station's.

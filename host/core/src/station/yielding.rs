@@ -1,0 +1,361 @@
+//! Yielding to what moves: the leader's pace among people, cyclists and vehicles.
+//!
+//! Each period, for a few speeds from the planner's full pace down to a standstill, the
+//! formation is rolled out along the leader's path for `[yielding] horizon_s`: the leader
+//! along the path ahead, each follower's reference where the formation manager puts it
+//! (wide slots rigid to the leader's pose, line slots along the path it drove), each
+//! follower closing on its reference; every moving track along its estimated velocity,
+//! its disc grown by its position's and (for a while) its velocity's uncertainty. A speed
+//! keeps the room owed when nothing comes closer than the personal space
+//! (`personal_space_m`, from a person's footprint) or [`VEHICLE_SPACE_M`] (from anything
+//! larger). The fastest speed that keeps it over the whole horizon is taken; else the
+//! fastest slow one ([`SLOW_SHARE`]) that keeps it over the next [`NEAR_S`] (a crossing
+//! seen early is met slowly, not by stopping far off); else a standstill.
+//!
+//! Why this and not ORCA or a velocity obstacle on the leader's heading: the leader leads
+//! a formation, and a swerve of the leader swings every slot; a path kept and a pace
+//! chosen keep the formation whole and make the robots predictable to the people round
+//! them (they slow and wait; they do not dodge). It never backs: a standstill is the
+//! slowest choice, so nobody is backed into. Chosen 2026-12-03, measured in
+//! `docs/sim.md#movers`.
+//!
+//! Held for `replan_after_s` by movers (a crowd filling a street), the leader asks the
+//! planner for another way round where they stand.
+
+use glam::DVec2;
+
+use crate::formation::FormationManager;
+use crate::geometry::PlanPose;
+use crate::scenario::YieldingSpec;
+use crate::tracking::TrackView;
+
+/// What is kept from anything that moves and is larger than a person, m.
+pub const VEHICLE_SPACE_M: f64 = 1.0;
+/// The speeds tried, as shares of the planner's full pace.
+const SHARES: [f64; 6] = [1.0, 0.8, 0.6, 0.4, 0.2, 0.0];
+/// The rollout's step, s.
+const STEP_S: f64 = 0.25;
+/// A track's velocity uncertainty grows its disc for at most this much, m.
+const VELOCITY_GROWTH_MAX_M: f64 = 0.3;
+/// A track's disc is at least this: a person's footprint about the centroid of the hits
+/// on its near side, m.
+const MIN_RADIUS_M: f64 = 0.3;
+/// The near part of the horizon: the leader brakes from full speed in about a second; a
+/// second more to spare, s.
+const NEAR_S: f64 = 2.0;
+/// Over it, a moving robot keeps at least this from every mover's footprint, whatever
+/// the mover does (a moving robot that is walked into has still touched someone), m.
+const CLEAR_M: f64 = 0.5;
+/// A pace that keeps this much less room than standing would owes the mover its room;
+/// one that keeps about as much (they come by anyway) does not, m.
+const NO_WORSE_M: f64 = 0.05;
+/// Where the personal space holds only over the near part, the leader goes no faster
+/// than this share of its pace.
+const SLOW_SHARE: f64 = 0.4;
+/// Speeding up again needs this much more room than keeping a pace, m.
+const RESUME_MARGIN_M: f64 = 0.1;
+/// The leader is held when the share it may use is under this.
+const HELD_BELOW: f64 = 0.05;
+
+/// What yielding decided this period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Yield {
+    /// The share of the planner's pace the leader may use, in [0, 1].
+    pub share: f64,
+    /// Movers hold the leader (it just began: `began`).
+    pub held: bool,
+    pub began: bool,
+    /// Held long enough: a way round is due, round this point and radius.
+    pub avoid: Option<(DVec2, f64)>,
+}
+
+/// What the rollout needs of the fleet now.
+pub struct Fleet<'a> {
+    pub leader: PlanPose,
+    /// The leader's speed now, m/s.
+    pub v: f64,
+    pub max_speed: f64,
+    pub max_accel: f64,
+    pub footprint: f64,
+    /// The path ahead from the leader's position, and the path it drove (from its
+    /// position back).
+    pub ahead: &'a [DVec2],
+    pub behind: &'a [DVec2],
+    /// Each follower's position (None: not known), in slot order.
+    pub followers: &'a [Option<DVec2>],
+    pub follower_speed: f64,
+}
+
+/// The leader's pace among movers.
+#[derive(Debug, Clone)]
+pub struct Yielding {
+    spec: YieldingSpec,
+    /// The share given last period.
+    last: f64,
+    held_since_s: Option<f64>,
+    /// When a way round was last asked for.
+    avoided_s: Option<f64>,
+}
+
+impl Yielding {
+    pub fn new(spec: YieldingSpec) -> Self {
+        Self {
+            spec,
+            last: 1.0,
+            held_since_s: None,
+            avoided_s: None,
+        }
+    }
+
+    /// One period at `now_s`: the share of its pace the leader may use.
+    pub fn decide(
+        &mut self,
+        now_s: f64,
+        fleet: &Fleet<'_>,
+        formation: &FormationManager,
+        movers: &[TrackView],
+    ) -> Yield {
+        let share = if movers.is_empty() {
+            1.0
+        } else {
+            self.choose(fleet, formation, movers)
+        };
+        self.last = share;
+        let held = share < HELD_BELOW;
+        let began = held && self.held_since_s.is_none();
+        if !held {
+            self.held_since_s = None;
+        } else if began {
+            self.held_since_s = Some(now_s);
+        }
+        let avoid = self.way_round_due(now_s, fleet, movers);
+        Yield {
+            share,
+            held,
+            began,
+            avoid,
+        }
+    }
+
+    /// The fastest share that keeps clear of everyone over the near part of the horizon
+    /// and owes nobody their room (see the module's doc); else a slow one that owes
+    /// nobody over the near part; else a standstill.
+    fn choose(&self, fleet: &Fleet<'_>, formation: &FormationManager, movers: &[TrackView]) -> f64 {
+        let standing = rollout(fleet, formation, movers, 0.0, &self.spec);
+        let mut slow = None;
+        for share in SHARES.into_iter().filter(|s| *s > 0.0) {
+            let gaps = rollout(fleet, formation, movers, share, &self.spec);
+            let extra = if share > self.last + 1e-9 {
+                RESUME_MARGIN_M
+            } else {
+                0.0
+            };
+            let clear = gaps.iter().all(|g| g.near >= CLEAR_M + extra);
+            if !clear {
+                continue;
+            }
+            let owes = |far: bool| {
+                gaps.iter().zip(&standing).any(|(g, s)| {
+                    let (gap, still) = if far {
+                        (g.near.min(g.far), s.near.min(s.far))
+                    } else {
+                        (g.near, s.near)
+                    };
+                    gap < g.owed + extra && gap < still - NO_WORSE_M
+                })
+            };
+            if !owes(true) {
+                return share;
+            }
+            if slow.is_none() && share <= SLOW_SHARE && !owes(false) {
+                slow = Some(share);
+            }
+        }
+        if slow.is_none() {
+            let gaps = rollout(fleet, formation, movers, SLOW_SHARE, &self.spec);
+            let worst = movers
+                .iter()
+                .zip(&gaps)
+                .min_by(|a, b| a.1.near.total_cmp(&b.1.near));
+            if let Some((m, g)) = worst {
+                tracing::debug!(
+                    track = m.id,
+                    x = m.position.x,
+                    y = m.position.y,
+                    vx = m.velocity.x,
+                    vy = m.velocity.y,
+                    near = g.near,
+                    far = g.far,
+                    "held"
+                );
+            }
+        }
+        slow.unwrap_or(0.0)
+    }
+
+    /// Held for `replan_after_s` by movers: the disc they stand in, once per hold.
+    fn way_round_due(
+        &mut self,
+        now_s: f64,
+        fleet: &Fleet<'_>,
+        movers: &[TrackView],
+    ) -> Option<(DVec2, f64)> {
+        let since = self.held_since_s?;
+        if now_s - since < self.spec.replan_after_s || self.avoided_s.is_some_and(|t| t >= since) {
+            return None;
+        }
+        self.avoided_s = Some(now_s);
+        let reach = fleet.max_speed * self.spec.horizon_s + 2.0;
+        let near: Vec<DVec2> = movers
+            .iter()
+            .map(|m| m.position)
+            .filter(|p| p.distance(fleet.leader.position) <= reach)
+            .collect();
+        if near.is_empty() {
+            return None;
+        }
+        let centre = near.iter().copied().sum::<DVec2>() / near.len() as f64;
+        let radius = near.iter().map(|p| p.distance(centre)).fold(0.0, f64::max)
+            + self.spec.personal_space_m
+            + MIN_RADIUS_M;
+        Some((centre, radius))
+    }
+}
+
+/// The least gap between a mover and any robot, over the near part of the horizon
+/// ([`NEAR_S`]) and over the rest, and the room the mover is owed.
+#[derive(Debug, Clone, Copy)]
+struct Gaps {
+    near: f64,
+    far: f64,
+    owed: f64,
+}
+
+/// Each mover's [`Gaps`], the leader making for `share` of its full pace.
+fn rollout(
+    fleet: &Fleet<'_>,
+    formation: &FormationManager,
+    movers: &[TrackView],
+    share: f64,
+    spec: &YieldingSpec,
+) -> Vec<Gaps> {
+    let path = Path::new(fleet.ahead);
+    let target = share * fleet.max_speed;
+    let (mut v, mut s) = (fleet.v, 0.0);
+    let mut positions: Vec<Option<DVec2>> = fleet.followers.to_vec();
+    let mut gaps: Vec<Gaps> = movers
+        .iter()
+        .map(|m| Gaps {
+            near: f64::INFINITY,
+            far: f64::INFINITY,
+            owed: owed(m, spec.personal_space_m),
+        })
+        .collect();
+    let steps = (spec.horizon_s / STEP_S).ceil() as usize;
+    for k in 1..=steps {
+        let t = k as f64 * STEP_S;
+        let dv = (target - v).clamp(-fleet.max_accel * STEP_S, fleet.max_accel * STEP_S);
+        s += (v + 0.5 * dv) * STEP_S;
+        v += dv;
+        let pose = path.pose_at(s, fleet.leader);
+        let behind = path.behind(s, fleet.leader, fleet.behind);
+        let mut robots = vec![pose.position];
+        for (k, p) in positions.iter_mut().enumerate() {
+            let Some(at) = p else { continue };
+            let reference = formation.reference(k, pose, &behind);
+            let to = reference - *at;
+            let reach = fleet.follower_speed * STEP_S;
+            *at += if to.length() <= reach {
+                to
+            } else {
+                to.normalize() * reach
+            };
+            robots.push(*at);
+        }
+        for (m, g) in movers.iter().zip(gaps.iter_mut()) {
+            let (centre, radius) = disc(m, t);
+            let least = robots
+                .iter()
+                .map(|r| r.distance(centre) - radius - fleet.footprint)
+                .fold(f64::INFINITY, f64::min);
+            if t <= NEAR_S + 1e-9 {
+                g.near = g.near.min(least);
+            } else {
+                g.far = g.far.min(least);
+            }
+        }
+    }
+    gaps
+}
+
+/// The room a mover is owed: the personal space for a person, more for anything larger.
+fn owed(m: &TrackView, personal_space: f64) -> f64 {
+    if m.person {
+        personal_space
+    } else {
+        VEHICLE_SPACE_M
+    }
+}
+
+/// A mover `t` seconds on: its centre, and its radius grown by its uncertainty.
+fn disc(m: &TrackView, t: f64) -> (DVec2, f64) {
+    let radius = m.radius.max(MIN_RADIUS_M)
+        + m.position_sigma
+        + (m.velocity_sigma * t).min(VELOCITY_GROWTH_MAX_M);
+    (m.at(t), radius)
+}
+
+/// A polyline by arc length.
+struct Path<'a> {
+    points: &'a [DVec2],
+    arcs: Vec<f64>,
+}
+
+impl<'a> Path<'a> {
+    fn new(points: &'a [DVec2]) -> Self {
+        let mut arcs = Vec::with_capacity(points.len());
+        let mut total = 0.0;
+        for (i, p) in points.iter().enumerate() {
+            if i > 0 {
+                total += points[i - 1].distance(*p);
+            }
+            arcs.push(total);
+        }
+        Self { points, arcs }
+    }
+
+    /// The pose `s` along (the leader's own pose at 0; standing at the end).
+    fn pose_at(&self, s: f64, start: PlanPose) -> PlanPose {
+        let n = self.points.len();
+        if n < 2 || s <= 0.0 {
+            return start;
+        }
+        let i = self.arcs.partition_point(|a| *a <= s).clamp(1, n - 1);
+        let (a, b) = (self.points[i - 1], self.points[i]);
+        let seg = self.arcs[i] - self.arcs[i - 1];
+        let f = if seg > 1e-9 {
+            ((s - self.arcs[i - 1]) / seg).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let d = b - a;
+        PlanPose {
+            position: a.lerp(b, f),
+            heading: if d.length() > 1e-9 {
+                d.to_angle()
+            } else {
+                start.heading
+            },
+        }
+    }
+
+    /// The path driven by the time the leader is `s` along: the stretch ahead it covered,
+    /// back to where it is now, then `behind`.
+    fn behind(&self, s: f64, start: PlanPose, behind: &[DVec2]) -> Vec<DVec2> {
+        let mut out = vec![self.pose_at(s, start).position];
+        let covered = self.arcs.partition_point(|a| *a < s);
+        out.extend(self.points[..covered.min(self.points.len())].iter().rev());
+        out.extend(behind.iter().skip(1));
+        out
+    }
+}

@@ -1,0 +1,646 @@
+//! What moves in the leader's scans: hits the map does not explain become clusters,
+//! clusters become **tracks** with a velocity and its uncertainty, and a track is judged
+//! moving or still. Perception marks what stands still (a bin, a van, a person who stopped
+//! in the way) and leaves out what moves; the leader and the formation yield to what moves.
+//!
+//! - **Clusters**: hits closer than [`LINK_M`] to each other (single linkage).
+//! - **Association**: each track predicted to the scan's time takes the nearest cluster
+//!   within its gate ([`GATE_M`] plus three sigmas of its position), nearest pairs first;
+//!   a cluster nobody takes starts a track; a track not seen for [`LOST_MS`] ends.
+//! - **Velocity**: a constant-velocity Kalman filter per axis on the cluster's centroid
+//!   (white acceleration noise [`ACCEL_SIGMA`], centroid noise [`CENTROID_SIGMA_M`] plus a
+//!   share of the cluster's extent).
+//! - **Moving or still**: judged on the hits, not the centroid (a long wall's visible part
+//!   slides along with the scanner; its centroid moves, its hits stay on the wall). A
+//!   cluster is *novel* where most of its hits lie farther than [`NOVEL_M`] from every hit
+//!   the track had [`BASELINE_MS`] ago or more: something that moves leaves the place it
+//!   was, something that stands is hit where it was hit before. Twice novel with the
+//!   filter's speed over [`MOVING_MPS`]: moving. Not novel for [`STILL_MS`]: still.
+//! - **Marks**: a still track's hits are marked (a track that once moved and is no larger
+//!   than a person is marked with the personal space round it); a moving track's are not,
+//!   and the marks it left while it stood are released. A new small track is marked only
+//!   once it is judged still (a person first seen walking leaves no mark); a new large
+//!   one at once, as before tracking (a wall, a van across the street).
+
+use std::collections::VecDeque;
+
+use glam::DVec2;
+use serde::Serialize;
+
+/// Hits this close belong to one cluster, m.
+pub const LINK_M: f64 = 0.45;
+/// A track takes a cluster this far from where it was predicted, plus 3σ, m.
+pub const GATE_M: f64 = 0.8;
+/// A gate is never wider than this, m.
+pub const MAX_GATE_M: f64 = 2.5;
+/// A track not seen for this long ends, ms.
+pub const LOST_MS: u32 = 1000;
+/// White acceleration noise of the motion model, m/s².
+pub const ACCEL_SIGMA: f64 = 1.5;
+/// Noise of a centroid, m, plus a quarter of the cluster's extent.
+pub const CENTROID_SIGMA_M: f64 = 0.08;
+/// A hit farther than this from every earlier hit of its track is novel, m.
+pub const NOVEL_M: f64 = 0.25;
+/// A cluster is novel where at least this share of its hits is.
+pub const NOVEL_SHARE: f64 = 0.6;
+/// And not novel where at most this share is.
+pub const SETTLED_SHARE: f64 = 0.25;
+/// Hits are compared with the track's hits at least this long ago, ms.
+pub const BASELINE_MS: u32 = 400;
+/// And at most this long ago, ms.
+pub const HISTORY_MS: u32 = 1200;
+/// A novel cluster moves where the filter's speed is over this, m/s.
+pub const MOVING_MPS: f64 = 0.3;
+/// A large track not novel this long stands still, ms.
+pub const STILL_MS: u32 = 500;
+/// A small one, or one that moved before, must stand this long (a person who stops in
+/// the way, not one who slows in a crowd; a bin is still a bin two seconds later), ms.
+pub const STOPPED_MS: u32 = 2000;
+/// A cluster this long or longer is marked at once, before it is judged (a wall, a van
+/// across the street; people side by side in a crowd are shorter), m.
+pub const LARGE_M: f64 = 2.0;
+/// A track that moved and is no longer than this is a person (or a cyclist end on) and
+/// gets the personal space round its marks, m.
+pub const PERSON_M: f64 = 1.0;
+/// Most tracks kept (the oldest unseen go first).
+pub const MAX_TRACKS: usize = 512;
+
+/// What a track is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Motion {
+    /// Not judged yet.
+    New,
+    Still,
+    Moving,
+}
+
+/// One axis of a constant-velocity Kalman filter: position, velocity, covariance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Axis {
+    p: f64,
+    v: f64,
+    /// Covariance [pp, pv, vv].
+    c: [f64; 3],
+}
+
+impl Axis {
+    fn new(p: f64, sigma: f64) -> Self {
+        Self {
+            p,
+            v: 0.0,
+            c: [sigma * sigma, 0.0, 1.0],
+        }
+    }
+
+    fn predict(&mut self, dt: f64) {
+        let q = ACCEL_SIGMA * ACCEL_SIGMA;
+        let [pp, pv, vv] = self.c;
+        self.p += self.v * dt;
+        self.c = [
+            pp + 2.0 * dt * pv + dt * dt * vv + q * dt.powi(4) / 4.0,
+            pv + dt * vv + q * dt.powi(3) / 2.0,
+            vv + q * dt * dt,
+        ];
+    }
+
+    fn update(&mut self, z: f64, sigma: f64) {
+        let [pp, pv, vv] = self.c;
+        let s = pp + sigma * sigma;
+        let (kp, kv) = (pp / s, pv / s);
+        let y = z - self.p;
+        self.p += kp * y;
+        self.v += kv * y;
+        self.c = [(1.0 - kp) * pp, (1.0 - kp) * pv, vv - kv * pv];
+    }
+}
+
+/// Something the scans show, followed from scan to scan.
+#[derive(Debug, Clone)]
+pub struct Track {
+    pub id: u32,
+    x: Axis,
+    y: Axis,
+    /// The longest distance between two of its latest hits, m.
+    pub extent: f64,
+    pub motion: Motion,
+    /// It was judged moving once (a person, a cyclist, a vehicle).
+    pub moved: bool,
+    /// When it was first and last seen, station ms.
+    pub born_ms: u32,
+    pub seen_ms: u32,
+    /// Its filter's time, station ms.
+    at_ms: u32,
+    /// Novel clusters in a row.
+    novel_run: u32,
+    /// Since when its clusters have not been novel, station ms.
+    settled_since: Option<u32>,
+    /// Its hits of the last [`HISTORY_MS`], oldest first.
+    history: VecDeque<(u32, Vec<DVec2>)>,
+}
+
+/// A track as the rest of the station sees it: predicted to a time.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TrackView {
+    pub id: u32,
+    pub position: DVec2,
+    pub velocity: DVec2,
+    /// One sigma of the position and of the velocity (the larger axis), m, m/s.
+    pub position_sigma: f64,
+    pub velocity_sigma: f64,
+    /// Half its extent: the disc its hits lie in, seen from the scanner's side, m.
+    pub radius: f64,
+    pub motion: Motion,
+    /// Moved once and no larger than a person.
+    pub person: bool,
+}
+
+impl TrackView {
+    /// Where it will be `dt` seconds on, as the filter predicts.
+    pub fn at(&self, dt: f64) -> DVec2 {
+        self.position + self.velocity * dt
+    }
+}
+
+impl Track {
+    fn new(id: u32, cluster: &Cluster, now_ms: u32) -> Self {
+        let sigma = cluster.sigma();
+        Self {
+            id,
+            x: Axis::new(cluster.centroid.x, sigma),
+            y: Axis::new(cluster.centroid.y, sigma),
+            extent: cluster.extent,
+            motion: Motion::New,
+            moved: false,
+            born_ms: now_ms,
+            seen_ms: now_ms,
+            at_ms: now_ms,
+            novel_run: 0,
+            settled_since: None,
+            history: VecDeque::from([(now_ms, cluster.hits.clone())]),
+        }
+    }
+
+    fn predicted(&self, now_ms: u32) -> (DVec2, f64) {
+        let (mut x, mut y) = (self.x, self.y);
+        let dt = now_ms.saturating_sub(self.at_ms) as f64 / 1000.0;
+        x.predict(dt);
+        y.predict(dt);
+        (DVec2::new(x.p, y.p), x.c[0].max(y.c[0]).sqrt())
+    }
+
+    /// Its view predicted to `now_ms`.
+    pub fn view(&self, now_ms: u32) -> TrackView {
+        let (mut x, mut y) = (self.x, self.y);
+        let dt = now_ms.saturating_sub(self.at_ms) as f64 / 1000.0;
+        x.predict(dt);
+        y.predict(dt);
+        TrackView {
+            id: self.id,
+            position: DVec2::new(x.p, y.p),
+            velocity: DVec2::new(x.v, y.v),
+            position_sigma: x.c[0].max(y.c[0]).sqrt(),
+            velocity_sigma: x.c[2].max(y.c[2]).sqrt(),
+            radius: 0.5 * self.extent,
+            motion: self.motion,
+            person: self.is_person(),
+        }
+    }
+
+    fn is_person(&self) -> bool {
+        self.moved && self.extent <= PERSON_M
+    }
+
+    fn speed(&self) -> f64 {
+        DVec2::new(self.x.v, self.y.v).length()
+    }
+
+    /// Takes this scan's cluster (`base`: the scan its motion is judged against, `now`:
+    /// this scan's surfaces): the filter, then moving or still.
+    fn take(
+        &mut self,
+        cluster: Cluster,
+        base: Option<&Scan>,
+        now: &Surface,
+        now_ms: u32,
+    ) -> Option<Motion> {
+        let dt = now_ms.saturating_sub(self.at_ms) as f64 / 1000.0;
+        let sigma = cluster.sigma();
+        for (axis, z) in [
+            (&mut self.x, cluster.centroid.x),
+            (&mut self.y, cluster.centroid.y),
+        ] {
+            axis.predict(dt);
+            axis.update(z, sigma);
+        }
+        self.at_ms = now_ms;
+        self.seen_ms = now_ms;
+        self.extent = cluster.extent;
+        let novelty = base.and_then(|b| self.novelty(&cluster.hits, b, now));
+        self.history.push_back((now_ms, cluster.hits));
+        while self
+            .history
+            .front()
+            .is_some_and(|(t, _)| now_ms.saturating_sub(*t) > HISTORY_MS)
+        {
+            self.history.pop_front();
+        }
+        self.judge(novelty, now_ms)
+    }
+
+    /// How much of the track is somewhere else than in the scan `base` (`None` when the
+    /// track was not seen in it): the lesser of the share of `hits` farther than
+    /// [`NOVEL_M`] from the surfaces `base` showed, and the share of the track's hits then
+    /// farther than that from the surfaces `now` shows. Both must be large: a thing that
+    /// moves is hit where nothing was and not where it was; the face of a van coming into
+    /// the scanner's reach only gains hits, and a beam sliding along a wall as the leader
+    /// drives still hits the wall.
+    fn novelty(&self, hits: &[DVec2], base: &Scan, now: &Surface) -> Option<f64> {
+        let (_, then) = self.history.iter().find(|(t, _)| *t == base.at_ms)?;
+        if hits.is_empty() || then.is_empty() {
+            return None;
+        }
+        let away = |from: &[DVec2], to: &Surface| {
+            let far = from.iter().filter(|h| !to.near(**h, NOVEL_M)).count();
+            far as f64 / from.len() as f64
+        };
+        Some(away(hits, &base.surface).min(away(then, now)))
+    }
+
+    /// Moving or still, from the cluster's novelty; the new motion when it changed.
+    fn judge(&mut self, novelty: Option<f64>, now_ms: u32) -> Option<Motion> {
+        let novelty = novelty?;
+        if novelty >= NOVEL_SHARE && self.speed() > MOVING_MPS {
+            self.novel_run += 1;
+        } else {
+            self.novel_run = 0;
+        }
+        if novelty <= SETTLED_SHARE {
+            self.settled_since.get_or_insert(now_ms);
+        } else {
+            self.settled_since = None;
+        }
+        let before = self.motion;
+        if self.novel_run >= 2 {
+            self.motion = Motion::Moving;
+            self.moved = true;
+        } else if self.settled_since.is_some_and(|t| {
+            let need = if self.moved || self.extent < LARGE_M {
+                STOPPED_MS
+            } else {
+                STILL_MS
+            };
+            now_ms.saturating_sub(t) + BASELINE_MS >= need
+        }) {
+            self.motion = Motion::Still;
+        }
+        (self.motion != before).then_some(self.motion)
+    }
+}
+
+/// Within this of each other, consecutive hits of a scan (in bearing order from the
+/// scanner) lie on one surface, m.
+pub const SURFACE_LINK_M: f64 = 1.0;
+
+/// The surfaces a scan shows: segments between consecutive hits (by bearing from where
+/// it was taken) closer than [`SURFACE_LINK_M`], and lone hits, indexed by cell.
+#[derive(Debug, Clone, Default)]
+pub struct Surface {
+    segments: Vec<(DVec2, DVec2)>,
+    cells: std::collections::HashMap<(i64, i64), Vec<usize>>,
+}
+
+impl Surface {
+    pub fn of(hits: &[DVec2], origin: DVec2) -> Self {
+        let mut sorted: Vec<(f64, DVec2)> = hits
+            .iter()
+            .map(|h| ((*h - origin).to_angle(), *h))
+            .collect();
+        sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut segments = Vec::with_capacity(sorted.len());
+        for (k, (_, h)) in sorted.iter().enumerate() {
+            segments.push((*h, *h));
+            let next = sorted[(k + 1) % sorted.len()].1;
+            if sorted.len() > 1 && h.distance(next) <= SURFACE_LINK_M {
+                segments.push((*h, next));
+            }
+        }
+        let mut cells: std::collections::HashMap<(i64, i64), Vec<usize>> = Default::default();
+        for (i, (a, b)) in segments.iter().enumerate() {
+            let (lo, hi) = (a.min(*b), a.max(*b));
+            let (c0, c1) = (surface_cell(lo), surface_cell(hi));
+            for cx in c0.0..=c1.0 {
+                for cy in c0.1..=c1.1 {
+                    cells.entry((cx, cy)).or_default().push(i);
+                }
+            }
+        }
+        Self { segments, cells }
+    }
+
+    /// Whether `p` lies within `within` (≤ one cell) of a surface.
+    pub fn near(&self, p: DVec2, within: f64) -> bool {
+        let (cx, cy) = surface_cell(p);
+        (-1..=1)
+            .flat_map(|dx| (-1..=1).map(move |dy| (cx + dx, cy + dy)))
+            .filter_map(|c| self.cells.get(&c))
+            .flatten()
+            .any(|i| {
+                let (a, b) = self.segments[*i];
+                crate::geometry::closest_on_segment(p, a, b).distance(p) <= within
+            })
+    }
+}
+
+fn surface_cell(p: DVec2) -> (i64, i64) {
+    (
+        (p.x / SURFACE_LINK_M).floor() as i64,
+        (p.y / SURFACE_LINK_M).floor() as i64,
+    )
+}
+
+/// One scan as kept for judging motion.
+#[derive(Debug, Clone)]
+pub struct Scan {
+    at_ms: u32,
+    surface: Surface,
+}
+
+/// Hits close together: one thing, or things side by side.
+#[derive(Debug, Clone)]
+struct Cluster {
+    hits: Vec<DVec2>,
+    /// Where each hit was in the scan.
+    order: Vec<usize>,
+    centroid: DVec2,
+    extent: f64,
+}
+
+impl Cluster {
+    fn of(order: Vec<usize>, all: &[DVec2]) -> Self {
+        let hits: Vec<DVec2> = order.iter().map(|i| all[*i]).collect();
+        let centroid = hits.iter().copied().sum::<DVec2>() / hits.len() as f64;
+        let extent = hits
+            .iter()
+            .flat_map(|a| hits.iter().map(move |b| a.distance(*b)))
+            .fold(0.0, f64::max);
+        Self {
+            hits,
+            order,
+            centroid,
+            extent,
+        }
+    }
+
+    /// The centroid's noise: its hits are the near side only, and move over it.
+    fn sigma(&self) -> f64 {
+        CENTROID_SIGMA_M + 0.25 * self.extent
+    }
+}
+
+/// Single-linkage clusters of `hits` ([`LINK_M`]), each hit in one.
+fn clusters(hits: &[DVec2]) -> Vec<Cluster> {
+    let mut parent: Vec<usize> = (0..hits.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let cell = |p: DVec2| ((p.x / LINK_M).floor() as i64, (p.y / LINK_M).floor() as i64);
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> =
+        std::collections::HashMap::new();
+    for (i, h) in hits.iter().enumerate() {
+        grid.entry(cell(*h)).or_default().push(i);
+    }
+    for (i, h) in hits.iter().enumerate() {
+        let (cx, cy) = cell(*h);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for &j in grid.get(&(cx + dx, cy + dy)).into_iter().flatten() {
+                    if j > i && h.distance(hits[j]) <= LINK_M {
+                        let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                        parent[a.max(b)] = a.min(b);
+                    }
+                }
+            }
+        }
+    }
+    let mut groups: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+    for i in 0..hits.len() {
+        let r = root(&mut parent, i);
+        groups.entry(r).or_default().push(i);
+    }
+    groups
+        .into_values()
+        .map(|order| Cluster::of(order, hits))
+        .collect()
+}
+
+/// Hits to mark as standing, and tracks whose marks must go.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Observation {
+    /// Each hit to mark (its index in the scan, the hit, the track it belongs to and the
+    /// room kept round it), in the scan's order.
+    pub marks: Vec<(usize, DVec2, MarkTag)>,
+    /// Tracks judged moving: the marks they left go.
+    pub released: Vec<u32>,
+}
+
+/// Whose a mark is and how much room it keeps beyond its cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkTag {
+    pub track: u32,
+    pub pad: f64,
+}
+
+/// What the tracker has done, for the operator.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct TrackCounts {
+    pub started: u64,
+    pub ended: u64,
+    /// Tracks judged moving at least once.
+    pub moved: u64,
+}
+
+/// The tracks of what the scans show.
+#[derive(Debug, Clone, Default)]
+pub struct Tracker {
+    tracks: Vec<Track>,
+    /// The scans of the last [`HISTORY_MS`], oldest first.
+    scans: VecDeque<Scan>,
+    next_id: u32,
+    /// The room marks of a person who stopped keep: the personal space, m.
+    person_pad: f64,
+    counts: TrackCounts,
+}
+
+impl Tracker {
+    /// `person_pad`: the personal space kept round a person who stopped, m.
+    pub fn new(person_pad: f64) -> Self {
+        Self {
+            person_pad,
+            ..Self::default()
+        }
+    }
+
+    /// One scan at `now_ms` taken from `origin`: `hits` the map does not explain (site
+    /// frame).
+    pub fn observe(&mut self, hits: &[DVec2], origin: DVec2, now_ms: u32) -> Observation {
+        let mut out = Observation::default();
+        self.age(now_ms);
+        let surface = Surface::of(hits, origin);
+        let base = self
+            .scans
+            .iter()
+            .find(|s| now_ms.saturating_sub(s.at_ms) >= BASELINE_MS)
+            .cloned();
+        let clusters = clusters(hits);
+        let pairs = self.associate(&clusters, now_ms);
+        let mut clusters: Vec<Option<Cluster>> = clusters.into_iter().map(Some).collect();
+        for (t, c) in pairs {
+            let cluster = clusters[c].take().expect("each cluster taken once");
+            let had_moved = self.tracks[t].moved;
+            let changed = self.tracks[t].take(cluster.clone(), base.as_ref(), &surface, now_ms);
+            if let Some(motion) = changed {
+                let v = self.tracks[t].view(now_ms);
+                tracing::debug!(
+                    track = v.id,
+                    ?motion,
+                    x = v.position.x,
+                    y = v.position.y,
+                    vx = v.velocity.x,
+                    vy = v.velocity.y,
+                    extent = self.tracks[t].extent,
+                    "track judged"
+                );
+            }
+            if changed == Some(Motion::Moving) {
+                out.released.push(self.tracks[t].id);
+            }
+            if self.tracks[t].moved && !had_moved {
+                self.counts.moved += 1;
+            }
+            self.mark(t, &cluster, &mut out);
+        }
+        for cluster in clusters.into_iter().flatten() {
+            let t = self.start(&cluster, now_ms);
+            self.mark(t, &cluster, &mut out);
+        }
+        // In the scan's order: what is marked is marked as without a tracker.
+        out.marks.sort_by_key(|(i, _, _)| *i);
+        self.scans.push_back(Scan {
+            at_ms: now_ms,
+            surface,
+        });
+        while self
+            .scans
+            .front()
+            .is_some_and(|s| now_ms.saturating_sub(s.at_ms) > HISTORY_MS)
+        {
+            self.scans.pop_front();
+        }
+        out
+    }
+
+    /// Ends the tracks not seen for [`LOST_MS`].
+    pub fn age(&mut self, now_ms: u32) {
+        let before = self.tracks.len();
+        self.tracks
+            .retain(|t| now_ms.saturating_sub(t.seen_ms) <= LOST_MS);
+        self.counts.ended += (before - self.tracks.len()) as u64;
+    }
+
+    /// Nearest pairs first, each within its track's gate.
+    fn associate(&self, clusters: &[Cluster], now_ms: u32) -> Vec<(usize, usize)> {
+        let mut candidates: Vec<(f64, usize, usize)> = Vec::new();
+        for (t, track) in self.tracks.iter().enumerate() {
+            let (at, sigma) = track.predicted(now_ms);
+            let gate = (GATE_M + 3.0 * sigma).min(MAX_GATE_M) + 0.5 * track.extent;
+            for (c, cluster) in clusters.iter().enumerate() {
+                let d = at.distance(cluster.centroid);
+                if d <= gate + 0.5 * cluster.extent {
+                    candidates.push((d, t, c));
+                }
+            }
+        }
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let (mut t_used, mut c_used) =
+            (vec![false; self.tracks.len()], vec![false; clusters.len()]);
+        let mut pairs = Vec::new();
+        for (_, t, c) in candidates {
+            if !t_used[t] && !c_used[c] {
+                t_used[t] = true;
+                c_used[c] = true;
+                pairs.push((t, c));
+            }
+        }
+        pairs
+    }
+
+    fn start(&mut self, cluster: &Cluster, now_ms: u32) -> usize {
+        if self.tracks.len() >= MAX_TRACKS {
+            // The one seen longest ago makes room.
+            if let Some(oldest) = (0..self.tracks.len()).min_by_key(|i| self.tracks[*i].seen_ms) {
+                self.tracks.swap_remove(oldest);
+                self.counts.ended += 1;
+            }
+        }
+        self.tracks.push(Track::new(self.next_id, cluster, now_ms));
+        self.next_id = self.next_id.wrapping_add(1);
+        self.counts.started += 1;
+        self.tracks.len() - 1
+    }
+
+    /// What of track `t`'s cluster is marked.
+    fn mark(&self, t: usize, cluster: &Cluster, out: &mut Observation) {
+        let track = &self.tracks[t];
+        let marked = match track.motion {
+            Motion::Moving => false,
+            Motion::Still => true,
+            Motion::New => cluster.extent >= LARGE_M,
+        };
+        if !marked {
+            return;
+        }
+        let pad = if track.is_person() {
+            self.person_pad
+        } else {
+            0.0
+        };
+        let tag = MarkTag {
+            track: track.id,
+            pad,
+        };
+        out.marks.extend(
+            cluster
+                .order
+                .iter()
+                .zip(&cluster.hits)
+                .map(|(i, h)| (*i, *h, tag)),
+        );
+    }
+
+    /// Every track, predicted to `now_ms`.
+    pub fn views(&self, now_ms: u32) -> impl Iterator<Item = TrackView> + '_ {
+        self.tracks.iter().map(move |t| t.view(now_ms))
+    }
+
+    /// The tracks judged moving, predicted to `now_ms`.
+    pub fn moving(&self, now_ms: u32) -> impl Iterator<Item = TrackView> + '_ {
+        self.views(now_ms).filter(|v| v.motion == Motion::Moving)
+    }
+
+    pub fn counts(&self) -> TrackCounts {
+        self.counts
+    }
+
+    pub fn len(&self) -> usize {
+        self.tracks.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.tracks.is_empty()
+    }
+}
