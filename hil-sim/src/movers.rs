@@ -49,6 +49,14 @@ const MAX_SPEED_FACTOR: f64 = 1.3;
 /// A path point is reached within this, m.
 const REACHED: f64 = 0.25;
 
+/// A robot as the movers see it: where it is, how it moves, its footprint's radius.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobotBody {
+    pub position: DVec2,
+    pub velocity: DVec2,
+    pub radius: f64,
+}
+
 /// A mover now: where it is, which way it faces, how it moves, its footprint.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MoverState {
@@ -236,7 +244,7 @@ impl Movers {
 
     /// One step of `dt` ending at `t_s`. `robots`: each robot's position and footprint
     /// radius; `site`: the obstacles.
-    pub fn step(&mut self, t_s: f64, dt: f64, robots: &[(DVec2, f64)], site: &Map) {
+    pub fn step(&mut self, t_s: f64, dt: f64, robots: &[RobotBody], site: &Map) {
         let grid = self.grid(t_s);
         let forces: Vec<DVec2> = (0..self.movers.len())
             .map(|i| self.social_force(i, t_s, &grid, robots, site))
@@ -275,7 +283,7 @@ impl Movers {
     /// Where mover `i` wants to go and how fast: along its path (or to its crowd's goal),
     /// standing while it pauses or is done. Advances its way when it reaches a point.
     /// A social mover heads round the robots in its way (see [`heading_round`]).
-    fn desired_velocity(&mut self, i: usize, t_s: f64, robots: &[(DVec2, f64)]) -> DVec2 {
+    fn desired_velocity(&mut self, i: usize, t_s: f64, robots: &[RobotBody]) -> DVec2 {
         let Some(target) = self.target(i, t_s) else {
             return DVec2::ZERO;
         };
@@ -331,7 +339,7 @@ impl Movers {
         i: usize,
         t_s: f64,
         grid: &HashMap<(i64, i64), Vec<usize>>,
-        robots: &[(DVec2, f64)],
+        robots: &[RobotBody],
         site: &Map,
     ) -> DVec2 {
         let m = &self.movers[i];
@@ -364,7 +372,12 @@ impl Movers {
                 force += (m.position - o.position).normalize_or_zero() * K_BODY * -gap;
             }
         }
-        for (p, radius) in robots {
+        for RobotBody {
+            position: p,
+            radius,
+            ..
+        } in robots
+        {
             let gap = (*p - m.position).length() - r - radius;
             if gap < INTERACTION {
                 // And a step to their right where the machine is ahead of them: people
@@ -403,17 +416,23 @@ fn advance(next: usize, forward: bool, len: usize, repeat: Repeat) -> Option<(us
 /// The way a person heads for `goal` from `at` with robots about (Moussaïd, Helbing &
 /// Theraulaz 2011: of the headings within 90° of the goal's, the one that brings them
 /// nearest to it, walking on until [`LOOK_AHEAD`] or until they would come within
-/// [`PASS_ROBOT`] of a robot's footprint). People go round a machine that stands in their
-/// way instead of pressing against it.
-fn heading_round(at: DVec2, reach: f64, goal: DVec2, robots: &[(DVec2, f64)]) -> DVec2 {
+/// [`PASS_ROBOT`] of a robot's footprint, where it is or will be in the next
+/// [`ANTICIPATE_S`] seconds). People go round a machine in their way, passing behind one
+/// that drives on, instead of pressing against it.
+fn heading_round(at: DVec2, reach: f64, goal: DVec2, robots: &[RobotBody]) -> DVec2 {
     let to = goal - at;
     let d_goal = to.length();
     let straight = to.normalize_or_zero();
     let look = d_goal.min(LOOK_AHEAD);
+    // Where each robot is and will be over the next seconds (people see where a machine
+    // is going), as discs it must be passed by.
     let near: Vec<(DVec2, f64)> = robots
         .iter()
-        .filter(|(p, r)| p.distance(at) < look + r + reach + PASS_ROBOT)
-        .map(|(p, r)| (*p, r + reach + PASS_ROBOT))
+        .flat_map(|b| {
+            let r = b.radius + reach + PASS_ROBOT;
+            (0..=ANTICIPATE_S as usize).map(move |k| (b.position + b.velocity * k as f64, r))
+        })
+        .filter(|(p, r)| p.distance(at) < look + r)
         .collect();
     if near.is_empty() || straight == DVec2::ZERO {
         return straight;
@@ -441,10 +460,13 @@ fn heading_round(at: DVec2, reach: f64, goal: DVec2, robots: &[(DVec2, f64)]) ->
         .map_or(straight, |(_, dir)| dir)
 }
 
+/// How many seconds ahead a person sees where a robot goes.
+const ANTICIPATE_S: f64 = 2.0;
 /// How far ahead a person looks for a robot in the way, m.
 const LOOK_AHEAD: f64 = 6.0;
-/// What a person keeps from a robot's footprint when going round it, m.
-const PASS_ROBOT: f64 = 0.5;
+/// What a person keeps from a robot's footprint when going round it, m (the personal
+/// space the robots keep from people).
+const PASS_ROBOT: f64 = 0.8;
 
 /// A crowd's person gives a goal up after twice the time it takes to walk there, and 5 s
 /// more: someone stands on it, or the way is blocked.

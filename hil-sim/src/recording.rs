@@ -1,6 +1,6 @@
 //! A run recorded as MCAP with the Foxglove SDK, to open in Foxglove or Lichtblick: the site
 //! map and the robots as a 3D scene (obstacles, footprints, headings, followers' slot
-//! points), each robot's pose, speeds and tracking error (plottable), the base station's
+//! points), the movers (`/movers`, the truth) and what the station tracks (`/tracks`), each robot's pose, speeds and tracking error (plottable), the base station's
 //! events as log messages, and the raw radio bytes every node sent (`/radio`, JSON, which
 //! `basestation decode` reads). Timestamps are the simulated clock (nanoseconds from
 //! the run's start). Written while the run goes on ([`Recording`]: `sim` hands it what is
@@ -13,18 +13,61 @@ use std::path::Path;
 use std::sync::{mpsc, Arc};
 
 use foxglove::messages::{
-    line_primitive, FrameTransform, FrameTransforms, LinePrimitive, Log, PoseInFrame, SceneEntity,
-    SceneUpdate, Vector3,
+    line_primitive, CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms,
+    LinePrimitive, Log, PoseInFrame, SceneEntity, SceneUpdate, Vector3,
 };
 use foxglove::{Channel, Context, McapWriteOptions, McapWriter, RawChannel};
 
 use glam::DVec2;
 
 use crate::metrics::Sample;
+use crate::movers::MoverState;
 use crate::report::Report;
 use crate::world::World;
+use base_station::scenario::movers::MoverShape;
 
 pub use base_station::recording::*;
+
+/// The movers as they are (a simulation's truth), a scene update per sample.
+pub const MOVERS_TOPIC: &str = "/movers";
+
+/// The movers in the scene: persons as 1.7 m cylinders, cyclists and vehicles as boxes
+/// turned along their way; purple.
+fn movers_entity(t_ns: u64, movers: &[MoverState]) -> SceneEntity {
+    let hue = color(0.55, 0.3, 0.75);
+    let mut e = SceneEntity {
+        timestamp: stamp(t_ns),
+        frame_id: FRAME.into(),
+        id: "movers".into(),
+        ..Default::default()
+    };
+    for m in movers {
+        let (x, y) = (m.position.x, m.position.y);
+        match m.shape {
+            MoverShape::Circle { radius } => e.cylinders.push(CylinderPrimitive {
+                pose: pose(x, y, 0.85, 0.0),
+                size: Some(Vector3 {
+                    x: 2.0 * radius,
+                    y: 2.0 * radius,
+                    z: 1.7,
+                }),
+                bottom_scale: 1.0,
+                top_scale: 1.0,
+                color: hue,
+            }),
+            MoverShape::Rectangle { length, width } => e.cubes.push(CubePrimitive {
+                pose: pose(x, y, 0.75, m.heading),
+                size: Some(Vector3 {
+                    x: length,
+                    y: width,
+                    z: 1.5,
+                }),
+                color: hue,
+            }),
+        }
+    }
+    e
+}
 
 /// Messages written per topic.
 pub type Counts = BTreeMap<String, u64>;
@@ -224,6 +267,8 @@ struct Writer {
     links: BTreeMap<u16, Channel<LinkHealth>>,
     shapes: Channel<FormationShape>,
     shape: &'static str,
+    movers: Channel<SceneUpdate>,
+    tracks: Channel<SceneUpdate>,
     events: Channel<Log>,
     radio: Arc<RawChannel>,
     senders: Vec<String>,
@@ -283,6 +328,8 @@ impl Writer {
                 .first()
                 .map_or(0.3, |r| r.body.params.footprint),
             routes: ctx.channel_builder("/route").build::<SceneUpdate>(),
+            movers: ctx.channel_builder(MOVERS_TOPIC).build::<SceneUpdate>(),
+            tracks: ctx.channel_builder(TRACKS_TOPIC).build::<SceneUpdate>(),
             links,
             shapes: ctx.channel_builder("/formation").build::<FormationShape>(),
             shape: "",
@@ -388,6 +435,25 @@ impl Writer {
         );
         self.count("/robots");
         self.note_shape(s.shape, t);
+        self.note_movers(s, t);
+    }
+
+    /// The movers (the truth) and the station's tracks, while there are any.
+    fn note_movers(&mut self, s: &Sample, t: u64) {
+        let scene = |e: SceneEntity| SceneUpdate {
+            entities: vec![e],
+            ..Default::default()
+        };
+        if !s.movers.is_empty() {
+            self.movers
+                .log_with_time(&scene(movers_entity(t, &s.movers)), t);
+            self.count(MOVERS_TOPIC);
+        }
+        if !s.tracks.is_empty() {
+            self.tracks
+                .log_with_time(&scene(tracks_entity(t, &s.tracks)), t);
+            self.count(TRACKS_TOPIC);
+        }
     }
 
     /// The formation's shape, when it changed.

@@ -130,6 +130,77 @@ pub struct MoversReport {
     pub time_to_goal_empty_s: Option<f64>,
     /// The first 100 contacts, one by one.
     pub contacts: Vec<crate::metrics::MoverContact>,
+    /// How well the station's tracks matched the movers (null without movers).
+    pub tracking: Option<TrackingReport>,
+}
+
+/// The station's tracks against the truth, over the samples (10 Hz), for the movers
+/// within the leader's scanner's reach.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct TrackingReport {
+    /// Mover-samples within reach, moving faster than 0.3 m/s.
+    pub moving_samples: u64,
+    /// Share of those with a moving track within 1 m of its footprint.
+    pub detected_fraction: f64,
+    /// Over the detected: mean distance from the track to the mover's centre, m, and
+    /// mean velocity error, m/s.
+    pub mean_position_error_m: f64,
+    pub mean_velocity_error_mps: f64,
+    /// Share of the detected whose velocity error is within two of the track's sigmas.
+    pub velocity_within_2_sigma_fraction: f64,
+    /// Moving tracks with no mover within 1 m of them, per moving track-sample.
+    pub false_moving_fraction: f64,
+}
+
+/// Within this of the leader a mover is in the scanner's reach, m.
+const TRACKING_REACH_M: f64 = crate::scanner::RANGE;
+
+impl TrackingReport {
+    pub fn of(rec: &Recorder, leader: Option<usize>) -> Option<Self> {
+        let leader = leader?;
+        let (mut n, mut found, mut pos, mut vel, mut within) = (0u64, 0u64, 0.0, 0.0, 0u64);
+        let (mut tracks, mut false_moving) = (0u64, 0u64);
+        for s in rec.samples.iter().filter(|s| !s.movers.is_empty()) {
+            let l = glam::DVec2::new(s.robots[leader].x, s.robots[leader].y);
+            let moving: Vec<_> = s
+                .tracks
+                .iter()
+                .filter(|t| t.motion == base_station::tracking::Motion::Moving)
+                .collect();
+            for m in s
+                .movers
+                .iter()
+                .filter(|m| m.velocity.length() > 0.3 && m.position.distance(l) <= TRACKING_REACH_M)
+            {
+                n += 1;
+                let near = moving
+                    .iter()
+                    .map(|t| (m.distance(t.position), t))
+                    .filter(|(d, _)| *d <= 1.0)
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                if let Some((_, t)) = near {
+                    found += 1;
+                    pos += t.position.distance(m.position);
+                    let e = (t.velocity - m.velocity).length();
+                    vel += e;
+                    within += (e <= 2.0 * t.velocity_sigma * std::f64::consts::SQRT_2) as u64;
+                }
+            }
+            for t in &moving {
+                tracks += 1;
+                false_moving += s.movers.iter().all(|m| m.distance(t.position) > 1.0) as u64;
+            }
+        }
+        let per = |a: f64, b: u64| if b > 0 { a / b as f64 } else { 0.0 };
+        (n > 0 || tracks > 0).then(|| Self {
+            moving_samples: n,
+            detected_fraction: per(found as f64, n),
+            mean_position_error_m: per(pos, found),
+            mean_velocity_error_mps: per(vel, found),
+            velocity_within_2_sigma_fraction: per(within as f64, found),
+            false_moving_fraction: per(false_moving as f64, tracks),
+        })
+    }
 }
 
 impl MoversReport {
@@ -149,6 +220,7 @@ impl MoversReport {
             freezing_s: m.freezing_s,
             time_to_goal_empty_s: None,
             contacts: m.contacts.clone(),
+            tracking: None,
         }
     }
 
@@ -356,7 +428,13 @@ pub fn build_report(
         transformations,
         link,
         station_events: Vec::new(),
-        movers: MoversReport::of(rec, facts.movers),
+        movers: MoversReport {
+            tracking: TrackingReport::of(
+                rec,
+                facts.roles.iter().position(|(_, r)| *r == Role::Leader),
+            ),
+            ..MoversReport::of(rec, facts.movers)
+        },
     }
 }
 

@@ -24,7 +24,7 @@ use rand_distr::{Distribution, Normal};
 use crate::brain::{Brain, BrainError, NativeBrain};
 use crate::faults::{Action, DeadBrain, Injector};
 use crate::metrics::{FleetView, Recorder, StationView, Tracked};
-use crate::movers::{MoverState, Movers};
+use crate::movers::{MoverState, Movers, RobotBody};
 use crate::observer::AirObserver;
 use crate::plant::{Body, BodyParams};
 use crate::radio::{NodeId, Radio, RadioParams};
@@ -541,10 +541,17 @@ impl World {
         if self.movers.is_empty() {
             return;
         }
-        let robots: Vec<(DVec2, f64)> = self
+        let robots: Vec<RobotBody> = self
             .robots
             .iter()
-            .map(|r| (DVec2::new(r.body.x, r.body.y), r.body.params.footprint))
+            .map(|r| {
+                let (v, _) = r.body.twist();
+                RobotBody {
+                    position: DVec2::new(r.body.x, r.body.y),
+                    velocity: DVec2::from_angle(r.body.heading) * v,
+                    radius: r.body.params.footprint,
+                }
+            })
             .collect();
         let t_s = self.t_us as f64 / 1e6;
         self.movers

@@ -43,7 +43,12 @@ fn check_text(name: &str, text: &str) -> (i32, String) {
 
 #[test]
 fn shipped_scenarios_check_clean() {
-    for name in ["paper-obstacles", "paper-passage"] {
+    for name in [
+        "paper-obstacles",
+        "paper-passage",
+        "street-crossing",
+        "plaza-crowd",
+    ] {
         let (code, out, err) = basestation(&["check", name], None);
         assert_eq!(code, 0, "{err}");
         assert!(out.contains("ok"));

@@ -29,10 +29,11 @@ fn basestation_sim_writes_report_and_figure() {
         "robots",
         "transformations",
         "link",
+        "movers",
     ] {
         assert!(r.get(key).is_some(), "report lacks {key}");
     }
-    assert_eq!(r["schema_version"], 2);
+    assert_eq!(r["schema_version"], 3);
     assert_eq!(r["seed"], 3);
     assert_eq!(r["firmware"], "native");
     for key in ["frames_sent", "frames_delivered", "frames_rejected"] {
@@ -224,4 +225,42 @@ fn sim_takes_faults_on_the_command_line() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown variant `melt`"));
+}
+
+/// The shipped street crossing: the report counts its movers and what the robots did
+/// among them; the recording shows the movers (the truth) and the station's tracks, a
+/// scene update per sample while there are any.
+#[test]
+fn street_crossing_reports_and_records_the_movers() {
+    let dir = common::scratch("e2e-sim-movers");
+    let (out, report) = common::sim_into(&dir, "street-crossing", &[]);
+    assert!(out.status.success());
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let m = &r["movers"];
+    assert_eq!(m["count"], 5);
+    assert_eq!(m["contacts_moving"], 0, "{m}");
+    assert!(m["time_to_goal_empty_s"].as_f64().unwrap() > 0.0);
+    assert!(
+        m["tracking"]["detected_fraction"].as_f64().unwrap() > 0.5,
+        "{m}"
+    );
+    let samples = (r["sim_time_s"].as_f64().unwrap() * 10.0).round() as u64;
+    let bytes = std::fs::read(dir.join("run.mcap")).unwrap();
+    let mut count: BTreeMap<String, (String, u64)> = BTreeMap::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let schema = m.channel.schema.as_ref().map(|s| s.name.clone());
+        count
+            .entry(m.channel.topic.clone())
+            .or_insert((schema.unwrap_or_default(), 0))
+            .1 += 1;
+    }
+    // A walker goes back and forth for ever: movers every sample once it appeared.
+    let (schema, movers) = &count["/movers"];
+    assert_eq!(schema, "foxglove.SceneUpdate");
+    assert!(*movers + 10 >= samples, "{movers} of {samples}");
+    let (schema, tracks) = &count["/tracks"];
+    assert_eq!(schema, "foxglove.SceneUpdate");
+    assert!(*tracks > samples / 2, "{tracks} of {samples}");
 }

@@ -30,6 +30,7 @@ use crate::follower::{self, LeaderSnapshot, SlotRef, Slots, Trail};
 use crate::kinematics::WheelSpeeds;
 use crate::odometry::{FixOutcome, Odometry, PoseFixSample};
 use crate::pid::Pid;
+use crate::ring::Ring;
 use crate::{math, NonFinite, Pose, Twist};
 
 /// What the board measured since the last step.
@@ -75,6 +76,8 @@ pub struct Controller {
     command: Option<(Twist, u32)>,
     stop_requested: bool,
     emergency: bool,
+    /// The ring's readings and what is coming at the robot.
+    ring: Ring,
     last_step_ms: Option<u32>,
     commanded: Twist,
     setpoints: WheelSpeeds,
@@ -102,6 +105,7 @@ impl Controller {
             command: None,
             stop_requested: false,
             emergency: false,
+            ring: Ring::default(),
             last_step_ms: None,
             commanded: Twist::ZERO,
             setpoints: WheelSpeeds::default(),
@@ -272,6 +276,8 @@ impl Controller {
         }
         faults |= self.watch_wheels(&measured, dt);
         let (mode, target) = self.decide(now_ms, dt, &mut faults);
+        self.ring
+            .observe(&sensors.proximity, self.cfg.drive.twist(measured), dt);
         let target = self.keep_distance(target, &sensors.proximity);
         if self.emergency {
             faults |= faults::EMERGENCY_STOP;
@@ -454,16 +460,13 @@ impl Controller {
     /// The local safety layer: whatever the law or the base station asks, the robot does
     /// not drive into what its proximity sensors see. Speed toward an obstacle is capped
     /// at the speed it can stop from at `proximity_decel` (half its braking) before
-    /// `proximity_stop`. A linear cap (1/s per metre) crawled at 0.15 m/s with 0.3 m free:
-    /// a follower passing a bin beside its way fell behind its slot (docs/sim.md).
+    /// `proximity_stop`, sooner where what it sees is coming at it ([`crate::ring`]). A
+    /// linear cap (1/s per metre) crawled at 0.15 m/s with 0.3 m free: a follower passing
+    /// a bin beside its way fell behind its slot (docs/sim.md).
     fn keep_distance(&self, t: Twist, proximity: &[Option<f32>; 2]) -> Twist {
-        let cap = |free: Option<f32>| {
-            free.map_or(f32::INFINITY, |d| {
-                let room = (d - self.cfg.proximity_stop).max(0.0);
-                math::sqrt(2.0 * self.cfg.proximity_decel * room)
-            })
-        };
-        let v = math::clamp(t.v, -cap(proximity[1]), cap(proximity[0]));
+        let (stop, decel) = (self.cfg.proximity_stop, self.cfg.proximity_decel);
+        let cap = |side: usize| self.ring.cap(side, proximity[side], stop, decel);
+        let v = math::clamp(t.v, -cap(1), cap(0));
         if v == t.v || t.v == 0.0 {
             return t;
         }

@@ -7,6 +7,7 @@
 //! - [`follower`]: the L-φ leader-follower law (singularity-free form), slots, prediction.
 //! - [`controller`]: modes (idle, joining, in formation, transforming, failsafe, leading,
 //!   emergency stop) and one control step from sensors to motor duties.
+//! - [`ring`]: the ultrasonic ring's stop rule, with the closing speed of what it sees.
 //! - [`node`]: the robot's radio node: link, messages in, telemetry out, control step.
 //!
 //! no_std, no heap; every bound is a const. Time is always passed in (milliseconds since
@@ -26,6 +27,7 @@ pub mod math;
 pub mod node;
 pub mod odometry;
 pub mod pid;
+pub mod ring;
 
 pub use config::RobotConfig;
 pub use controller::{Controller, MotorOutput, Sensors};

@@ -92,6 +92,10 @@ pub enum Reason {
     PassageAhead,
     /// The narrow stretch is behind the whole formation and the way ahead is wide.
     PassageBehind,
+    /// People (or vehicles) move about the formation's way: the narrow shape crosses them.
+    MoversAhead,
+    /// Nobody moves about the way any more (and it is wide).
+    MoversGone,
 }
 
 impl Reason {
@@ -99,6 +103,8 @@ impl Reason {
         match self {
             Reason::PassageAhead => "passage_ahead",
             Reason::PassageBehind => "passage_behind",
+            Reason::MoversAhead => "movers_ahead",
+            Reason::MoversGone => "movers_gone",
         }
     }
 }
@@ -182,6 +188,8 @@ pub struct FormationManager {
     transition: Option<Transition>,
     line_since: Option<f64>,
     events: Vec<Transformation>,
+    /// Movers crowd the way: the line, until they are gone.
+    crowded: bool,
 }
 
 /// A shape change under way: how far along its smoothstep (0 … 1), and how fast it goes
@@ -380,6 +388,7 @@ impl FormationManager {
             from_blend: 0.0,
             transition: None,
             line_since: None,
+            crowded: false,
             events: Vec::new(),
         }
     }
@@ -579,6 +588,8 @@ impl FormationManager {
                     || self.wide_slot_blocked(map, leader, self.slot_need())
                 {
                     self.switch(Target::Line, now_s, Reason::PassageAhead);
+                } else if self.crowded {
+                    self.switch(Target::Line, now_s, Reason::MoversAhead);
                 }
             }
             Target::Line => {
@@ -589,6 +600,7 @@ impl FormationManager {
                     .line_since
                     .is_some_and(|t| now_s - t >= self.spec.min_dwell_s);
                 let open = dwelt
+                    && !self.crowded
                     && !self.narrow_along(
                         map,
                         ahead,
@@ -603,7 +615,16 @@ impl FormationManager {
                         .flatten()
                         .any(|f| self.is_narrow(map, f.position, need_out));
                 if open {
-                    self.switch(Target::Wide, now_s, Reason::PassageBehind);
+                    let movers = self
+                        .events
+                        .last()
+                        .is_some_and(|e| e.reason == Reason::MoversAhead);
+                    let why = if movers {
+                        Reason::MoversGone
+                    } else {
+                        Reason::PassageBehind
+                    };
+                    self.switch(Target::Wide, now_s, why);
                 }
             }
         }
@@ -734,6 +755,12 @@ impl FormationManager {
             return self.blend;
         };
         self.blend_of(t.progress_at(now_s))
+    }
+
+    /// Whether movers crowd the formation's way (the station's tracks say): the wide
+    /// shape gives way to the line while they do.
+    pub fn set_crowded(&mut self, crowded: bool) {
+        self.crowded = crowded;
     }
 
     fn switch(&mut self, to: Target, now_s: f64, reason: Reason) {

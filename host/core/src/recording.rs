@@ -5,8 +5,9 @@
 //!
 //! Topics: `/radio` (the bytes every node put on the air, JSON `from` + `hex`), `/events`
 //! (the station's events as log lines), `/tf` (each robot's frame in the site frame),
-//! `/robot_N/link` ([`LinkHealth`] once a second), and the scene and per-robot channels a
-//! recording writes with the entities and messages below.
+//! `/robot_N/link` ([`LinkHealth`] once a second), `/tracks` (what the station tracks:
+//! [`tracks_entity`]), and the scene and per-robot channels a recording writes with the
+//! entities and messages below (a simulation adds `/movers`, the movers' truth).
 
 use std::sync::Arc;
 
@@ -17,6 +18,7 @@ use foxglove::messages::{
 use foxglove::{Channel, Context, PartialMetadata, RawChannel, Schema};
 
 use crate::geometry::Obstacle;
+use crate::tracking::{Motion, TrackView};
 
 /// The frame every position is in: the site's metric frame.
 pub const FRAME: &str = "site";
@@ -191,6 +193,57 @@ pub fn slot_marker((x, y): (f64, f64)) -> foxglove::messages::SpherePrimitive {
         }),
         color: color(0.2, 0.8, 0.3),
     }
+}
+
+/// What the station tracks (a scene update per sample while it tracks anything).
+pub const TRACKS_TOPIC: &str = "/tracks";
+
+/// The station's tracks in the scene: each a disc of its radius grown by one sigma
+/// (moving orange, still grey, not judged yet yellow) and, moving, an arrow of where it
+/// will be in a second.
+pub fn tracks_entity(t_ns: u64, tracks: &[TrackView]) -> SceneEntity {
+    let mut e = SceneEntity {
+        timestamp: stamp(t_ns),
+        frame_id: FRAME.into(),
+        id: "tracks".into(),
+        ..Default::default()
+    };
+    for t in tracks {
+        let hue = match t.motion {
+            Motion::Moving => color(1.0, 0.55, 0.0),
+            Motion::Still => color(0.55, 0.55, 0.55),
+            Motion::New => color(0.95, 0.85, 0.2),
+        };
+        let across = 2.0 * (t.radius + t.position_sigma).max(0.1);
+        e.cylinders.push(CylinderPrimitive {
+            pose: pose(t.position.x, t.position.y, 0.05, 0.0),
+            size: Some(Vector3 {
+                x: across,
+                y: across,
+                z: 0.1,
+            }),
+            bottom_scale: 1.0,
+            top_scale: 1.0,
+            color: hue.map(|c| Color { a: 0.6, ..c }),
+        });
+        let speed = t.velocity.length();
+        if t.motion == Motion::Moving && speed > 0.05 {
+            e.arrows.push(ArrowPrimitive {
+                pose: pose(
+                    t.position.x,
+                    t.position.y,
+                    0.15,
+                    t.velocity.y.atan2(t.velocity.x),
+                ),
+                shaft_length: speed,
+                shaft_diameter: 0.05,
+                head_length: 0.15,
+                head_diameter: 0.15,
+                color: hue,
+            });
+        }
+    }
+    e
 }
 
 /// Each robot's frame in the site frame, every sample.

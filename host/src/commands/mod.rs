@@ -31,6 +31,14 @@ pub const SHIPPED: &[(&str, &str)] = &[
         "paper-passage",
         include_str!("../../../scenarios/paper-passage.toml"),
     ),
+    (
+        "street-crossing",
+        include_str!("../../../scenarios/street-crossing.toml"),
+    ),
+    (
+        "plaza-crowd",
+        include_str!("../../../scenarios/plaza-crowd.toml"),
+    ),
 ];
 
 /// A scenario from a file, or a shipped one by name; refused, with every unreachable

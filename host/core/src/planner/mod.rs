@@ -197,6 +197,8 @@ pub struct Planner {
     events: Vec<PlannerEvent>,
     /// Whether the step ended without a route last time (said once).
     no_route_said: bool,
+    /// Braking harder than `max_accel` allows, m/s² (yielding to a mover).
+    brake: Option<f64>,
 }
 
 /// The route layer's state.
@@ -320,6 +322,7 @@ impl Planner {
             routing: None,
             events: Vec::new(),
             no_route_said: false,
+            brake: None,
         }
     }
 
@@ -599,7 +602,8 @@ impl Planner {
         let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
         let target = p.max_speed * strength * align * align * speed_scale.clamp(0.0, 1.0);
-        self.v += (target - self.v).clamp(-p.max_accel * dt, p.max_accel * dt);
+        let down = self.brake.unwrap_or(p.max_accel).max(p.max_accel);
+        self.v += (target - self.v).clamp(-down * dt, p.max_accel * dt);
         Command {
             v: self.v,
             omega,
@@ -814,6 +818,12 @@ impl Planner {
         self.drive_along(now_s, dt, pose, s, map, speed_scale)
     }
 
+    /// Brakes at up to `accel` (m/s², above `max_accel`) while set: the leader stopping
+    /// for someone in its way; `None`: at `max_accel`.
+    pub fn set_braking(&mut self, accel: Option<f64>) {
+        self.brake = accel;
+    }
+
     /// Movers (a crowd filling a street) have held the leader: the disc they stand in is
     /// marked blocked and the route planned again from `from`. A guess, as a stuck mark
     /// is: forgotten where it leaves no way (the route then stays as it was).
@@ -906,7 +916,8 @@ impl Planner {
         // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
         let braking = (p.max_accel * to_end).sqrt();
         let target = (p.max_speed * align * align * speed_scale.clamp(0.0, 1.0)).min(braking);
-        self.v += (target - self.v).clamp(-p.max_accel * dt, p.max_accel * dt);
+        let down = self.brake.unwrap_or(p.max_accel).max(p.max_accel);
+        self.v += (target - self.v).clamp(-down * dt, p.max_accel * dt);
         self.mode = Mode::Route;
         Command {
             v: self.v,

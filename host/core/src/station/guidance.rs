@@ -102,6 +102,16 @@ impl Guidance {
         self.planner.route()
     }
 
+    /// Whether movers crowd the formation's way (the wide shape gives way to the line).
+    pub fn set_crowded(&mut self, crowded: bool) {
+        self.formation.set_crowded(crowded);
+    }
+
+    /// Brakes harder than the planner's comfort allows (yielding), or not (`None`).
+    pub fn set_braking(&mut self, accel: Option<f64>) {
+        self.planner.set_braking(accel);
+    }
+
     /// Movers have held the leader: a way round the disc (`at`, `radius`) they stand in,
     /// from `from`, if the map has one.
     pub fn avoid(&mut self, at: DVec2, radius: f64, from: DVec2, now_s: f64, world: &Map) {

@@ -85,6 +85,9 @@ pub struct StationConfig {
     pub perception: PerceptionLimits,
     /// How the leader and the formation yield to what moves.
     pub yielding: crate::scenario::YieldingSpec,
+    /// How hard the leader may brake for someone in its way (a margin under its limit),
+    /// m/s².
+    pub yield_brake: f64,
 }
 
 impl StationConfig {
@@ -106,6 +109,7 @@ impl StationConfig {
             fixes: FixLimits::from_spec(&s.localization),
             perception: PerceptionLimits::from_scenario(s),
             yielding: s.yielding.clone(),
+            yield_brake: 0.8 * s.robot.max_accel,
         }
     }
 }
@@ -310,6 +314,9 @@ impl BaseStation {
         let statuses = self
             .fleet
             .follower_statuses(now_ms, |id| self.detours.is_active(id));
+        let movers: Vec<TrackView> = self.tracker.moving(now_ms).collect();
+        let crowded = self.yielding.crowded(now_s, leader.pose.position, &movers);
+        self.guidance.set_crowded(crowded);
         let look = self.guidance.look(now_s, &leader, &statuses, &self.world);
         if let Some(change) = look.change {
             tracing::info!(to = ?change.to, "formation change");
@@ -448,6 +455,7 @@ impl BaseStation {
             v: leader.v,
             max_speed: self.cfg.planner.max_speed,
             max_accel: self.cfg.planner.max_accel,
+            brake: self.cfg.yield_brake.max(self.cfg.planner.max_accel),
             footprint: self.guidance.formation().spec().footprint,
             ahead: &look.ahead,
             behind: &look.behind,
@@ -465,6 +473,10 @@ impl BaseStation {
             );
             self.events.push(StationEvent::Yielding { at_ms: now_ms });
         }
+        // Braking for someone: as hard as the robot allows, not at the planner's comfort.
+        let braking = y.share * self.cfg.planner.max_speed < leader.v - 0.05;
+        let brake = braking.then_some(self.cfg.yield_brake);
+        self.guidance.set_braking(brake);
         if let Some((at, radius)) = y.avoid {
             let from = leader.pose.position;
             self.guidance.avoid(at, radius, from, now_s, &self.world);

@@ -31,24 +31,34 @@ use crate::tracking::TrackView;
 
 /// What is kept from anything that moves and is larger than a person, m.
 pub const VEHICLE_SPACE_M: f64 = 1.0;
+/// This many moving within [`CROWD_NEAR_M`] of the leader crowd the way.
+const CROWD_COUNT: usize = 2;
+const CROWD_NEAR_M: f64 = 6.0;
+/// The way is clear again once nobody has crowded it for this long, s.
+const CROWD_CLEAR_S: f64 = 8.0;
 /// The speeds tried, as shares of the planner's full pace.
 const SHARES: [f64; 6] = [1.0, 0.8, 0.6, 0.4, 0.2, 0.0];
 /// The rollout's step, s.
 const STEP_S: f64 = 0.25;
 /// A track's velocity uncertainty grows its disc for at most this much, m.
-const VELOCITY_GROWTH_MAX_M: f64 = 0.3;
-/// A track's disc is at least this: a person's footprint about the centroid of the hits
-/// on its near side, m.
+const VELOCITY_GROWTH_MAX_M: f64 = 0.2;
+/// A track's disc is at least this: a person's footprint, m.
 const MIN_RADIUS_M: f64 = 0.3;
-/// The near part of the horizon: the leader brakes from full speed in about a second; a
-/// second more to spare, s.
-const NEAR_S: f64 = 2.0;
+/// The hits lie on the side facing the scanner (the leader): a small track's centre lies
+/// this much farther from it than their centroid, m.
+const NEAR_SIDE_M: f64 = 0.15;
+/// The near part of the horizon: the leader brakes from full speed in about half a
+/// second; a second more to spare, s.
+const NEAR_S: f64 = 1.5;
 /// Over it, a moving robot keeps at least this from every mover's footprint, whatever
 /// the mover does (a moving robot that is walked into has still touched someone), m.
 const CLEAR_M: f64 = 0.5;
 /// A pace that keeps this much less room than standing would owes the mover its room;
 /// one that keeps about as much (they come by anyway) does not, m.
 const NO_WORSE_M: f64 = 0.05;
+/// Nobody comes this close to a moving robot's footprint (the track's uncertainty on
+/// top), even passing by, m.
+const TOUCH_M: f64 = 0.15;
 /// Where the personal space holds only over the near part, the leader goes no faster
 /// than this share of its pace.
 const SLOW_SHARE: f64 = 0.4;
@@ -76,6 +86,8 @@ pub struct Fleet<'a> {
     pub v: f64,
     pub max_speed: f64,
     pub max_accel: f64,
+    /// How hard it brakes for someone in its way, m/s².
+    pub brake: f64,
     pub footprint: f64,
     /// The path ahead from the leader's position, and the path it drove (from its
     /// position back).
@@ -95,6 +107,8 @@ pub struct Yielding {
     held_since_s: Option<f64>,
     /// When a way round was last asked for.
     avoided_s: Option<f64>,
+    /// When movers last crowded the way.
+    crowded_s: Option<f64>,
 }
 
 impl Yielding {
@@ -104,7 +118,23 @@ impl Yielding {
             last: 1.0,
             held_since_s: None,
             avoided_s: None,
+            crowded_s: None,
         }
+    }
+
+    /// Whether movers crowd the formation's way: [`CROWD_COUNT`] moving within
+    /// [`CROWD_NEAR_M`] of the leader, until none have for [`CROWD_CLEAR_S`]. The wide
+    /// shape then gives way to the line: three robots abreast cross a crowd as a 4 m
+    /// wall, in a line as one robot's width.
+    pub fn crowded(&mut self, now_s: f64, leader: DVec2, movers: &[TrackView]) -> bool {
+        let near = movers
+            .iter()
+            .filter(|m| m.position.distance(leader) <= CROWD_NEAR_M)
+            .count();
+        if near >= CROWD_COUNT {
+            self.crowded_s = Some(now_s);
+        }
+        self.crowded_s.is_some_and(|t| now_s - t <= CROWD_CLEAR_S)
     }
 
     /// One period at `now_s`: the share of its pace the leader may use.
@@ -150,7 +180,12 @@ impl Yielding {
             } else {
                 0.0
             };
-            let clear = gaps.iter().all(|g| g.near >= CLEAR_M + extra);
+            // Clear: nobody comes within CLEAR_M, or (passing by) no closer than they
+            // would to the fleet standing; and nobody close to touching whatever.
+            let clear = gaps.iter().zip(&standing).all(|(g, s)| {
+                g.near >= TOUCH_M + extra
+                    && (g.near >= CLEAR_M + extra || g.near >= s.near - NO_WORSE_M)
+            });
             if !clear {
                 continue;
             }
@@ -169,25 +204,6 @@ impl Yielding {
             }
             if slow.is_none() && share <= SLOW_SHARE && !owes(false) {
                 slow = Some(share);
-            }
-        }
-        if slow.is_none() {
-            let gaps = rollout(fleet, formation, movers, SLOW_SHARE, &self.spec);
-            let worst = movers
-                .iter()
-                .zip(&gaps)
-                .min_by(|a, b| a.1.near.total_cmp(&b.1.near));
-            if let Some((m, g)) = worst {
-                tracing::debug!(
-                    track = m.id,
-                    x = m.position.x,
-                    y = m.position.y,
-                    vx = m.velocity.x,
-                    vy = m.velocity.y,
-                    near = g.near,
-                    far = g.far,
-                    "held"
-                );
             }
         }
         slow.unwrap_or(0.0)
@@ -254,7 +270,7 @@ fn rollout(
     let steps = (spec.horizon_s / STEP_S).ceil() as usize;
     for k in 1..=steps {
         let t = k as f64 * STEP_S;
-        let dv = (target - v).clamp(-fleet.max_accel * STEP_S, fleet.max_accel * STEP_S);
+        let dv = (target - v).clamp(-fleet.brake * STEP_S, fleet.max_accel * STEP_S);
         s += (v + 0.5 * dv) * STEP_S;
         v += dv;
         let pose = path.pose_at(s, fleet.leader);
@@ -273,7 +289,7 @@ fn rollout(
             robots.push(*at);
         }
         for (m, g) in movers.iter().zip(gaps.iter_mut()) {
-            let (centre, radius) = disc(m, t);
+            let (centre, radius) = disc(m, t, fleet.leader.position);
             let least = robots
                 .iter()
                 .map(|r| r.distance(centre) - radius - fleet.footprint)
@@ -297,12 +313,18 @@ fn owed(m: &TrackView, personal_space: f64) -> f64 {
     }
 }
 
-/// A mover `t` seconds on: its centre, and its radius grown by its uncertainty.
-fn disc(m: &TrackView, t: f64) -> (DVec2, f64) {
+/// A mover `t` seconds on: its centre, and its radius grown by its uncertainty. `scanner`:
+/// where its hits were seen from.
+fn disc(m: &TrackView, t: f64, scanner: DVec2) -> (DVec2, f64) {
     let radius = m.radius.max(MIN_RADIUS_M)
         + m.position_sigma
         + (m.velocity_sigma * t).min(VELOCITY_GROWTH_MAX_M);
-    (m.at(t), radius)
+    let behind = if m.radius < MIN_RADIUS_M {
+        (m.position - scanner).normalize_or_zero() * NEAR_SIDE_M
+    } else {
+        DVec2::ZERO
+    };
+    (m.at(t) + behind, radius)
 }
 
 /// A polyline by arc length.

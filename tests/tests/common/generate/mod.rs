@@ -4,6 +4,8 @@
 
 use std::fmt::Write as _;
 
+pub mod movers;
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -24,6 +26,9 @@ struct Builder {
     waypoints: Vec<[f64; 2]>,
     goal: [f64; 2],
     shape: &'static str,
+    /// More tables, as TOML (`[[movers]]`, `[[crowds]]`).
+    tables: String,
+    duration_s: f64,
 }
 
 impl Builder {
@@ -36,6 +41,8 @@ impl Builder {
             waypoints: Vec::new(),
             goal,
             shape: "triangle",
+            tables: String::new(),
+            duration_s: 400.0,
         }
     }
 
@@ -137,7 +144,8 @@ impl Builder {
             self.goal[0],
             self.goal[1]
         );
-        let _ = writeln!(t, "[sim]\nduration_s = 400.0");
+        let _ = writeln!(t, "[sim]\nduration_s = {:.1}", self.duration_s);
+        t.push_str(&self.tables);
         Generated {
             name: name.to_string(),
             toml: t,

@@ -1,0 +1,304 @@
+//! The fleet among people and vehicles, on generated worlds (one seed each): a person
+//! crossing in front of the formation, one walking against it in a 3 m alley, a cyclist
+//! overtaking, a car pulling out across the street, a person standing 20 s in the way,
+//! crowds of 0.05, 0.1, 0.2 and 0.3 persons/m² on a plaza (social and oblivious), movers
+//! among unmapped obstacles. Each world also runs without its movers, for the time to
+//! goal against the empty site.
+//!
+//! Bounds (issue 29): no contact while a robot moves, on every world; no contact with the
+//! site or between robots; oblivious walkers walk into a standing robot in under 1 % of
+//! runs (over every oblivious world of the run); social crowds up to 0.2 persons/m²: the
+//! goal reached on at least 99 % of the worlds, mean personal-space intrusion ≤ 1 s per
+//! run; at 0.1 persons/m², mean time to goal ≤ 1.3 × the empty site's. The rates are
+//! printed per suite as the crowd-navigation benchmarks report them (success, contact,
+//! timeout).
+//!
+//! The crowd bounds and the walked-into bound are not met yet: those tests are `#[ignore]`d
+//! with the reason (run them with `--ignored`); docs/results.md has the figures.
+//!
+//! A failing world is written to `target/mover-worlds/NAME.toml`: `basestation sim` it.
+//! `MOVER_SEEDS=N` runs N seeds per suite (default 4), from `MOVER_FIRST_SEED` (default
+//! 1: fresh worlds start at any other).
+
+mod common;
+
+use base_station::scenario::Scenario;
+use common::generate::movers as gen;
+use common::generate::Generated;
+use hil_sim::report::Report;
+
+fn seeds() -> std::ops::RangeInclusive<u64> {
+    let var = |name: &str, default: u64| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let (first, n) = (var("MOVER_FIRST_SEED", 1), var("MOVER_SEEDS", 4));
+    first..=first + n.max(1) - 1
+}
+
+fn save(g: &Generated) -> String {
+    let dir = format!("{}/../target/mover-worlds", env!("CARGO_MANIFEST_DIR"));
+    let _ = std::fs::create_dir_all(&dir);
+    let path = format!("{dir}/{}.toml", g.name);
+    let _ = std::fs::write(&path, &g.toml);
+    path
+}
+
+/// One world's run, and the same world's without its movers.
+struct Outcome {
+    name: String,
+    path: String,
+    report: Report,
+    empty_s: Option<f64>,
+}
+
+impl Outcome {
+    fn static_contacts(&self) -> u32 {
+        let m = &self.report.movers;
+        self.report.collisions - m.contacts_moving - m.contacts_standing
+    }
+
+    fn ratio(&self) -> Option<f64> {
+        Some(self.report.time_to_goal_s? / self.empty_s?)
+    }
+
+    fn line(&self) -> String {
+        let r = &self.report;
+        let m = &r.movers;
+        let num = |v: Option<f64>| v.map_or("never".to_string(), |v| format!("{v:.1}"));
+        format!(
+            "{:<34} goal {:>6} empty {:>6} ratio {:>5} contacts moving {} standing {} static {} least person {} intrusion {:.1} s freezing {:.1} s movers {}",
+            self.name,
+            num(r.time_to_goal_s),
+            num(self.empty_s),
+            self.ratio().map_or("—".to_string(), |x| format!("{x:.2}")),
+            m.contacts_moving,
+            m.contacts_standing,
+            self.static_contacts(),
+            m.min_person_clearance_m
+                .map_or("—".to_string(), |c| format!("{c:.2} m")),
+            m.intrusion_s,
+            m.freezing_s,
+            m.count,
+        )
+    }
+}
+
+fn run(g: &Generated, seed: u64) -> Outcome {
+    let path = save(g);
+    let s = Scenario::parse(&g.toml, &g.name).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut empty = s.clone();
+    empty.movers.clear();
+    empty.crowds.clear();
+    let (report, _) = common::run(s, seed);
+    let (bare, _) = common::run(empty, seed);
+    Outcome {
+        name: g.name.clone(),
+        path,
+        report,
+        empty_s: bare.time_to_goal_s,
+    }
+}
+
+/// A suite's rates, as the crowd-navigation benchmarks report them.
+struct Rates {
+    n: usize,
+    success: f64,
+    /// Worlds with a contact while a robot moved.
+    contact: f64,
+    /// Worlds where a standing robot was walked into.
+    walked_into: f64,
+    timeout: f64,
+    intrusion_s: f64,
+    freezing_s: f64,
+    /// Mean time to goal over the empty site's, where both reached it.
+    ratio: Option<f64>,
+}
+
+fn rates(outcomes: &[Outcome]) -> Rates {
+    let n = outcomes.len();
+    let share =
+        |f: &dyn Fn(&Outcome) -> bool| outcomes.iter().filter(|o| f(o)).count() as f64 / n as f64;
+    let mean = |f: &dyn Fn(&Outcome) -> f64| outcomes.iter().map(f).sum::<f64>() / n as f64;
+    let ratios: Vec<f64> = outcomes.iter().filter_map(Outcome::ratio).collect();
+    Rates {
+        n,
+        success: share(&|o| o.report.goal_reached),
+        contact: share(&|o| o.report.movers.contacts_moving > 0),
+        walked_into: share(&|o| o.report.movers.contacts_standing > 0),
+        timeout: share(&|o| !o.report.goal_reached),
+        intrusion_s: mean(&|o| o.report.movers.intrusion_s),
+        freezing_s: mean(&|o| o.report.movers.freezing_s),
+        ratio: (!ratios.is_empty()).then(|| ratios.iter().sum::<f64>() / ratios.len() as f64),
+    }
+}
+
+/// Runs a suite; every world: no contact while moving, none with the site; prints the
+/// lines and the rates, and returns the outcomes for the suite's own bounds.
+fn suite(name: &str, make: impl Fn(u64) -> Generated) -> (Rates, Vec<Outcome>) {
+    let bar = common::progress(name, seeds().count() as u64);
+    let mut outcomes = Vec::new();
+    for seed in seeds() {
+        let o = run(&make(seed), seed);
+        bar.suspend(|| println!("{}", o.line()));
+        outcomes.push(o);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let r = rates(&outcomes);
+    println!(
+        "suite {name}: {} worlds, success {:.0} %, contact {:.0} %, walked into {:.0} %, timeout {:.0} %, mean intrusion {:.2} s, mean freezing {:.1} s, time {} × empty",
+        r.n,
+        100.0 * r.success,
+        100.0 * r.contact,
+        100.0 * r.walked_into,
+        100.0 * r.timeout,
+        r.intrusion_s,
+        r.freezing_s,
+        r.ratio.map_or("—".to_string(), |x| format!("{x:.2}"))
+    );
+    let bad: Vec<String> = outcomes
+        .iter()
+        .filter(|o| o.report.movers.contacts_moving > 0 || o.static_contacts() > 0)
+        .map(|o| format!("{}\n    {}", o.line(), o.path))
+        .collect();
+    assert!(
+        bad.is_empty(),
+        "{name}: contacts while moving or with the site:\n{}",
+        bad.join("\n")
+    );
+    (r, outcomes)
+}
+
+/// Every world reaches its goal.
+fn all_arrive(name: &str, outcomes: &[Outcome]) {
+    let late: Vec<String> = outcomes
+        .iter()
+        .filter(|o| !o.report.goal_reached)
+        .map(|o| format!("{}\n    {}", o.line(), o.path))
+        .collect();
+    assert!(
+        late.is_empty(),
+        "{name}: goal not reached:\n{}",
+        late.join("\n")
+    );
+}
+
+/// Oblivious walkers may walk into a standing robot: under 1 % of runs.
+fn rarely_walked_into(name: &str, outcomes: &[Outcome]) {
+    let hit: Vec<String> = outcomes
+        .iter()
+        .filter(|o| o.report.movers.contacts_standing > 0)
+        .map(|o| format!("{}\n    {}", o.line(), o.path))
+        .collect();
+    assert!(
+        hit.len() * 100 < outcomes.len().max(1),
+        "{name}: a standing robot walked into in {} of {} runs:\n{}",
+        hit.len(),
+        outcomes.len(),
+        hit.join("\n")
+    );
+}
+
+#[test]
+fn a_person_crossing_in_front() {
+    for social in [true, false] {
+        let name = format!("crossing-{}", gen::behavior_name(social));
+        let (_, o) = suite(&name, |s| gen::crossing(s, social));
+        all_arrive(&name, &o);
+    }
+}
+
+#[test]
+fn a_person_walking_against_the_formation_in_a_3m_alley() {
+    for social in [true, false] {
+        let name = format!("oncoming-{}", gen::behavior_name(social));
+        let (_, o) = suite(&name, |s| gen::oncoming_alley(s, social));
+        all_arrive(&name, &o);
+    }
+}
+
+#[test]
+fn a_cyclist_overtaking() {
+    for social in [true, false] {
+        let name = format!("cyclist-{}", gen::behavior_name(social));
+        let (_, o) = suite(&name, |s| gen::cyclist_overtaking(s, social));
+        all_arrive(&name, &o);
+    }
+}
+
+#[test]
+fn a_car_pulling_out_across_the_street() {
+    let (_, o) = suite("car-pulling-out", gen::car_pulling_out);
+    all_arrive("car-pulling-out", &o);
+}
+
+#[test]
+fn a_person_standing_20s_in_the_way() {
+    for social in [true, false] {
+        let name = format!("standing-{}", gen::behavior_name(social));
+        let (_, o) = suite(&name, |s| gen::standing_person(s, social));
+        all_arrive(&name, &o);
+    }
+}
+
+#[test]
+#[ignore = "issue 29's crowd bounds are not met yet: the leader freezes (0.1 persons/m²: \
+            0 of 4 reach the goal in 300 s) and followers touch the site at 0.2; \
+            docs/results.md#movers. Run with --ignored"]
+fn social_crowds_on_a_plaza() {
+    let mut failed = Vec::new();
+    for density in [0.05, 0.1, 0.2, 0.3] {
+        let name = format!("plaza-{density}-social");
+        let (r, _) = suite(&name, |s| gen::plaza_crowd(s, density, true));
+        if density <= 0.2 && r.success < 0.99 {
+            failed.push(format!("{name}: success {:.2}", r.success));
+        }
+        if density <= 0.2 && r.intrusion_s > 1.0 {
+            failed.push(format!("{name}: mean intrusion {:.2} s", r.intrusion_s));
+        }
+        let ratio = r.ratio.unwrap_or(f64::INFINITY);
+        if density == 0.1 && ratio > 1.3 {
+            failed.push(format!(
+                "{name}: time to goal {ratio:.2} × the empty site's"
+            ));
+        }
+    }
+    assert!(failed.is_empty(), "{}", failed.join("\n"));
+}
+
+#[test]
+#[ignore = "issue 29's bound is not met yet: oblivious crowds walk into moving robots \
+            (2 of 4 worlds at 0.05 persons/m²) and into standing ones on every world; \
+            docs/results.md#movers. Run with --ignored"]
+fn oblivious_crowds_on_a_plaza() {
+    let mut all = Vec::new();
+    for density in [0.05, 0.1, 0.2, 0.3] {
+        let name = format!("plaza-{density}-oblivious");
+        let (_, o) = suite(&name, |s| gen::plaza_crowd(s, density, false));
+        all.extend(o);
+    }
+    rarely_walked_into("plaza-oblivious", &all);
+}
+
+#[test]
+fn movers_among_unmapped_obstacles() {
+    let (_, o) = suite("movers-unmapped", gen::movers_and_unmapped);
+    all_arrive("movers-unmapped", &o);
+}
+
+#[test]
+#[ignore = "issue 29's bound is not met yet: a standing robot is walked into on 2 of 4 \
+            standing-oblivious and 1 of 4 oncoming-oblivious worlds (the robot waits in \
+            the walker's way instead of stepping aside); docs/results.md#movers. Run \
+            with --ignored"]
+fn oblivious_walkers_rarely_walk_into_a_standing_robot() {
+    let mut all = Vec::new();
+    all.extend(suite("crossing-oblivious", |s| gen::crossing(s, false)).1);
+    all.extend(suite("oncoming-oblivious", |s| gen::oncoming_alley(s, false)).1);
+    all.extend(suite("cyclist-oblivious", |s| gen::cyclist_overtaking(s, false)).1);
+    all.extend(suite("standing-oblivious", |s| gen::standing_person(s, false)).1);
+    rarely_walked_into("oblivious walkers", &all);
+}
