@@ -1,11 +1,16 @@
-//! Speed of the simulator: wall time and real-time factor of `paper-obstacles`, and of
-//! formations of 10, 100 and 1,000 robots on an open map (30 s simulated each).
+//! Speed of the simulator: wall time and real-time factor of `paper-obstacles`, of the
+//! same with 20 social pedestrians walking across it (scanner, ring and tracking all see
+//! them), and of formations of 10, 100 and 1,000 robots on an open map (30 s simulated
+//! each).
 //! `cargo bench -p hil-sim --bench sim_speed` (prints a table; not a criterion bench:
 //! one run of a 1,000-robot fleet is the measurement).
 
 use std::time::Instant;
 
-use base_station::scenario::{RobotEntry, Role, Scenario, ShapeName, SlotSpec, StartPose};
+use base_station::scenario::movers::{Behavior, CrowdSpec};
+use base_station::scenario::{
+    BoundsSpec, RobotEntry, Role, Scenario, ShapeName, SlotSpec, StartPose,
+};
 use hil_sim::run::simulate;
 use hil_sim::world::SimOptions;
 
@@ -15,6 +20,28 @@ fn paper_obstacles() -> Scenario {
         env!("CARGO_MANIFEST_DIR")
     );
     Scenario::load(std::path::Path::new(&path)).unwrap()
+}
+
+/// `paper-obstacles` with 20 social pedestrians walking between random points of the
+/// 20 m × 20 m the formation crosses.
+fn paper_with_pedestrians() -> Scenario {
+    let mut s = paper_obstacles();
+    s.name = "paper-obstacles+20p".into();
+    s.crowds.push(CrowdSpec {
+        area: BoundsSpec {
+            min: [0.0, 0.0],
+            max: [20.0, 20.0],
+        },
+        density: 0.05,
+        speed_mean: 1.3,
+        speed_sd: 0.25,
+        seed: 1,
+        behavior: Behavior::Social,
+        start_s: 0.0,
+    });
+    s.validate().expect("valid crowd scenario");
+    assert_eq!(s.crowds[0].persons(), 20);
+    s
 }
 
 /// A leader and `n − 1` followers in a grid behind it (rows of 10, 2 m apart), open map.
@@ -80,6 +107,7 @@ fn main() {
     );
     let runs = [
         measure(paper_obstacles()),
+        measure(paper_with_pedestrians()),
         measure(fleet(10)),
         measure(fleet(100)),
         measure(fleet(1000)),

@@ -148,13 +148,15 @@ fn basestation_sim_writes_report_and_figure() {
     assert!(of("LeaderState", "base") > 500 && of("Telemetry", "robot:1") > 500);
     assert!(lines.iter().all(|l| l["t_s"].as_f64().is_some()));
 
-    assert_layout_fits(&schemas);
+    // A run without movers records none.
+    assert_layout_fits(&schemas, &["/movers", "/tracks"]);
 }
 
 /// The shipped Foxglove layout shows this recording: every topic its panels name is a
 /// channel of it (robots beyond this run's three excepted: the layout has room for a
-/// 7-follower V), and every plotted field is in that channel's schema.
-fn assert_layout_fits(schemas: &BTreeMap<String, Vec<u8>>) {
+/// 7-follower V, and the topics in `may_lack`), and every plotted field is in that
+/// channel's schema.
+fn assert_layout_fits(schemas: &BTreeMap<String, Vec<u8>>, may_lack: &[&str]) {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/foxglove-layout.json");
     let layout: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
@@ -180,7 +182,9 @@ fn assert_layout_fits(schemas: &BTreeMap<String, Vec<u8>>) {
     };
     let mut checked = 0;
     for (panel, topic, field) in named {
-        if absent_robot(&topic) {
+        if absent_robot(&topic)
+            || (may_lack.contains(&topic.as_str()) && !schemas.contains_key(&topic))
+        {
             continue;
         }
         let schema = schemas
@@ -248,8 +252,14 @@ fn street_crossing_reports_and_records_the_movers() {
     let samples = (r["sim_time_s"].as_f64().unwrap() * 10.0).round() as u64;
     let bytes = std::fs::read(dir.join("run.mcap")).unwrap();
     let mut count: BTreeMap<String, (String, u64)> = BTreeMap::new();
+    let mut schemas: BTreeMap<String, Vec<u8>> = BTreeMap::new();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
+        if let Some(s) = &m.channel.schema {
+            schemas
+                .entry(m.channel.topic.clone())
+                .or_insert_with(|| s.data.to_vec());
+        }
         let schema = m.channel.schema.as_ref().map(|s| s.name.clone());
         count
             .entry(m.channel.topic.clone())
@@ -263,4 +273,6 @@ fn street_crossing_reports_and_records_the_movers() {
     let (schema, tracks) = &count["/tracks"];
     assert_eq!(schema, "foxglove.SceneUpdate");
     assert!(*tracks > samples / 2, "{tracks} of {samples}");
+    // The shipped layout shows them.
+    assert_layout_fits(&schemas, &[]);
 }

@@ -200,6 +200,18 @@ fn identical_to_native_going_round_a_bin() {
     assert!(detours > 0, "{}: no detour", g.name);
 }
 
+/// Among movers: the shipped street crossing (people and a cyclist crossing, the ring's
+/// closing-speed rule, tracks, yielding and the crowd line all at work), and an oblivious
+/// walker standing in the way, identical in QEMU.
+#[test]
+fn identical_to_native_among_movers() {
+    let r = assert_identical(shipped("street-crossing"), 1);
+    assert!(r.movers.count > 0 && r.goal_reached);
+    let g = generate::movers::standing_person(3, false);
+    let s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
+    assert!(assert_identical(s, 3).movers.count > 0);
+}
+
 /// One generated map of each other kind the suite runs: a street with pinches and bends
 /// (shape changes), a 1.3 m alley (the ultrasonic ring at work), scattered starts
 /// (joining from 8–15 m), an unmapped barrier (the leader's scanner, replanning, a U-turn).
