@@ -9,7 +9,10 @@ mod commands;
 mod key;
 mod live;
 
+use std::process::ExitCode;
+
 use clap::{Parser, Subcommand};
+use commands::outcome::Outcome;
 use tracing_subscriber::EnvFilter;
 
 /// The sanitation fleet's base station.
@@ -45,7 +48,7 @@ enum Command {
     FeedRelay(commands::feed_relay::FeedRelayArgs),
 }
 
-fn main() -> std::process::ExitCode {
+fn main() -> ExitCode {
     let cli = Cli::parse();
     let default = match cli.verbose {
         0 => "warn",
@@ -57,22 +60,26 @@ fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        // No colour codes in a log piped to a file.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
+    // `sim`'s outcome is its exit code (commands/outcome.rs); the rest succeed or fail.
+    let done = |r: anyhow::Result<()>| r.map(|()| None);
     let result = match cli.command {
-        Command::Run(args) => commands::run::run(args),
-        Command::Check(args) => commands::check::run(args),
-        Command::Decode(args) => commands::decode::run(args),
-        Command::Sim(args) => commands::sim::run(args),
-        Command::Robots(args) => commands::robots::run(args),
-        Command::RobotConfig(args) => commands::robot_config::run(args),
-        Command::FeedKey(args) => commands::feed_key::run(args),
-        Command::FeedRelay(args) => commands::feed_relay::run(args),
+        Command::Run(args) => done(commands::run::run(args)),
+        Command::Sim(args) => commands::sim::run(args).map(Some),
+        Command::Check(args) => done(commands::check::run(args)),
+        Command::Decode(args) => done(commands::decode::run(args)),
+        Command::Robots(args) => done(commands::robots::run(args)),
+        Command::RobotConfig(args) => done(commands::robot_config::run(args)),
+        Command::FeedKey(args) => done(commands::feed_key::run(args)),
+        Command::FeedRelay(args) => done(commands::feed_relay::run(args)),
     };
     match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+        Ok(outcome) => outcome.map_or(ExitCode::SUCCESS, Outcome::exit_code),
         Err(e) => {
             eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            ExitCode::from(commands::outcome::BAD_INPUT)
         }
     }
 }

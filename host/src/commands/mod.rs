@@ -6,6 +6,7 @@ pub mod check;
 pub mod decode;
 pub mod feed_key;
 pub mod feed_relay;
+pub mod outcome;
 pub mod robot_config;
 pub mod robots;
 pub mod run;

@@ -244,6 +244,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
+    // Its exit code stays 0 on every end for now (`sim`'s are distinct): the
+    // outcome is said, not coded.
+    let outcome = super::outcome::Outcome::of(&station, stop.load(Ordering::SeqCst));
+    if outcome == super::outcome::Outcome::NeverLinked {
+        eprintln!(
+            "no robot ever linked: check the transport's address (--udp / --port) and that the station and the robots share the fleet key"
+        );
+    }
     Ok(())
 }
 

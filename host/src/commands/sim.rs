@@ -52,7 +52,7 @@ fn parse_fault(text: &str) -> anyhow::Result<base_station::scenario::FaultSpec> 
     Ok(w.fault)
 }
 
-pub fn run(args: SimArgs) -> anyhow::Result<()> {
+pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     if !args.realtime && (args.serve.console.is_some() || args.serve.live.is_some()) {
         anyhow::bail!("--console and --live need --realtime (a run no faster than the wall clock)");
     }
@@ -169,7 +169,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         .and_then(|r| r.finish(&world, &report))
         .map_err(anyhow::Error::msg)?;
     print_table(&report, &report_path, &plot_path, &mcap_path);
-    Ok(())
+    Ok(super::outcome::Outcome::of(&world.station, false))
 }
 
 // Writes to stdout, ignoring a closed pipe (`| head`) instead of panicking.
