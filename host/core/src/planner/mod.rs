@@ -396,9 +396,7 @@ impl Planner {
             return;
         };
         if let Some(planner) = routing.planner.as_mut() {
-            for o in obstacles {
-                planner.remove_obstacle(o, map);
-            }
+            planner.remove_obstacles(obstacles, map);
         }
         routing.unchecked.retain(|u| !obstacles.contains(u));
     }

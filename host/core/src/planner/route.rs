@@ -297,11 +297,32 @@ impl ClearanceGrid {
         self.stamp(o, self.cap as f64);
     }
 
-    /// Raises the clearances near an obstacle that is gone (a sensed one forgotten) to
-    /// what `map`, which no longer holds it, gives there.
-    pub fn restore(&mut self, o: &Obstacle, map: &Map) {
+    /// Raises the clearances near obstacles that are gone (sensed ones forgotten, or a
+    /// person who walked on) to what `map`, which no longer holds them, gives there.
+    /// Boxes that overlap are restored once, as their union: a track's marks are a
+    /// cluster of points a few centimetres apart, and each point's box is most of the
+    /// cluster's (restored point by point, that took a sixth of a crowd's run).
+    pub fn restore_all(&mut self, gone: &[Obstacle], map: &Map) {
+        let mut groups: Vec<([DVec2; 2], Vec<&Obstacle>)> = Vec::new();
+        for o in gone {
+            let (mut b, mut members) = (o.bounds(), vec![o]);
+            // Fold every box it overlaps into it, until none does.
+            while let Some(k) = groups.iter().position(|(c, _)| overlap(c, &b)) {
+                let (c, more) = groups.swap_remove(k);
+                b = [b[0].min(c[0]), b[1].max(c[1])];
+                members.extend(more);
+            }
+            groups.push((b, members));
+        }
+        for (b, members) in groups {
+            self.restore_box(b, &members, map);
+        }
+    }
+
+    /// [`Self::restore_all`] over one box: only the cells one of `gone` was the nearest
+    /// surface of (the rest keep what another surface gives them).
+    fn restore_box(&mut self, [blo, bhi]: [DVec2; 2], gone: &[&Obstacle], map: &Map) {
         let (lo, cell, cap) = (self.origin, self.cell, self.cap as f64);
-        let [blo, bhi] = o.bounds();
         let i0 = ((blo.x - cap - lo.x) / cell).floor().max(0.0) as usize;
         let j0 = ((blo.y - cap - lo.y) / cell).floor().max(0.0) as usize;
         let i1 = (((bhi.x + cap - lo.x) / cell).ceil().max(0.0) as usize).min(self.nx - 1);
@@ -309,7 +330,14 @@ impl ClearanceGrid {
         for j in j0..=j1 {
             for i in i0..=i1 {
                 let p = lo + DVec2::new(i as f64, j as f64) * cell;
-                self.clear[j * self.nx + i] = map.clearance(p, cap).max(0.0) as f32;
+                let k = j * self.nx + i;
+                let was = self.clear[k] as f64;
+                let nearest = gone
+                    .iter()
+                    .any(|o| o.nearest(p).distance <= was + RESTORE_SLACK_M);
+                if nearest {
+                    self.clear[k] = map.clearance(p, cap).max(0.0) as f32;
+                }
             }
         }
     }
@@ -567,9 +595,9 @@ impl RoutePlanner {
         self.grid.add(o);
     }
 
-    /// Takes a sensed obstacle out of the grid again; `map`: what remains.
-    pub fn remove_obstacle(&mut self, o: &Obstacle, map: &Map) {
-        self.grid.restore(o, map);
+    /// Takes sensed obstacles out of the grid again; `map`: what remains.
+    pub fn remove_obstacles(&mut self, gone: &[Obstacle], map: &Map) {
+        self.grid.restore_all(gone, map);
     }
 
     /// Extra cost per metre of a cell with clearance `c` (∞ when blocked).
@@ -973,6 +1001,15 @@ fn distance_transform(seeds: &[bool], nx: usize, ny: usize, limit: f32) -> Vec<f
         }
     }
     d
+}
+
+/// A cell's clearance within this of a removed obstacle's distance was (or may have
+/// been, in f32) that obstacle's, m.
+const RESTORE_SLACK_M: f64 = 1e-3;
+
+/// Whether two boxes overlap (or touch).
+fn overlap(a: &[DVec2; 2], b: &[DVec2; 2]) -> bool {
+    a[0].x <= b[1].x && b[0].x <= a[1].x && a[0].y <= b[1].y && b[0].y <= a[1].y
 }
 
 #[cfg(test)]

@@ -145,10 +145,11 @@ impl Yielding {
         formation: &FormationManager,
         movers: &[TrackView],
     ) -> Yield {
-        let share = if movers.is_empty() {
+        let binding = self.in_reach(fleet, formation, movers);
+        let share = if binding.is_empty() {
             1.0
         } else {
-            self.choose(fleet, formation, movers)
+            self.choose(fleet, formation, &binding)
         };
         self.last = share;
         let held = share < HELD_BELOW;
@@ -165,6 +166,41 @@ impl Yielding {
             began,
             avoid,
         }
+    }
+
+    /// The movers that could bind a choice: those that may come within the most any of
+    /// [`Self::choose`]'s rules asks of any robot over the horizon, however fast they all
+    /// go. The rest cannot change the share (leaving them out is exact, and saves the
+    /// rollouts most of a crowd).
+    fn in_reach(
+        &self,
+        fleet: &Fleet<'_>,
+        formation: &FormationManager,
+        movers: &[TrackView],
+    ) -> Vec<TrackView> {
+        let h = self.spec.horizon_s;
+        let from = fleet.leader.position;
+        let leader = fleet.v.max(fleet.max_speed) * h;
+        let followers = fleet
+            .followers
+            .iter()
+            .flatten()
+            .map(|p| p.distance(from) + fleet.follower_speed * h)
+            .fold(formation.line_reach().max(formation.wide_reach()), f64::max);
+        let robots = leader.max(followers) + fleet.footprint;
+        movers
+            .iter()
+            .filter(|m| {
+                let grown = m.radius.max(MIN_RADIUS_M)
+                    + m.position_sigma
+                    + VELOCITY_GROWTH_MAX_M
+                    + NEAR_SIDE_M;
+                let asked = owed(m, self.spec.personal_space_m).max(CLEAR_M) + RESUME_MARGIN_M;
+                let least = m.position.distance(from) - m.velocity.length() * h - grown - robots;
+                least < asked + 0.1
+            })
+            .copied()
+            .collect()
     }
 
     /// The fastest share that keeps clear of everyone over the near part of the horizon
@@ -256,6 +292,9 @@ fn rollout(
     spec: &YieldingSpec,
 ) -> Vec<Gaps> {
     let path = Path::new(fleet.ahead);
+    // The line's last slot is at most this far back along the trail: the rest of it
+    // (the whole way driven) need not be copied at every step.
+    let trail = prefix(fleet.behind, formation.line_reach() + 1.0);
     let target = share * fleet.max_speed;
     let (mut v, mut s) = (fleet.v, 0.0);
     let mut positions: Vec<Option<DVec2>> = fleet.followers.to_vec();
@@ -274,7 +313,7 @@ fn rollout(
         s += (v + 0.5 * dv) * STEP_S;
         v += dv;
         let pose = path.pose_at(s, fleet.leader);
-        let behind = path.behind(s, fleet.leader, fleet.behind);
+        let behind = path.behind(s, fleet.leader, trail);
         let mut robots = vec![pose.position];
         for (k, p) in positions.iter_mut().enumerate() {
             let Some(at) = p else { continue };
@@ -302,6 +341,19 @@ fn rollout(
         }
     }
     gaps
+}
+
+/// The points of `trail` up to the first `length` along it from its first, and the
+/// one beyond.
+fn prefix(trail: &[DVec2], length: f64) -> &[DVec2] {
+    let mut along = 0.0;
+    for (k, w) in trail.windows(2).enumerate() {
+        along += w[0].distance(w[1]);
+        if along > length {
+            return &trail[..k + 2];
+        }
+    }
+    trail
 }
 
 /// The room a mover is owed: the personal space for a person, more for anything larger.
