@@ -50,7 +50,11 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // A live run says how it goes at the default level: the station's progress (links,
+    // fleet ready, shape changes, yielding) and what is wrong (diagnosis, warnings).
+    let live = matches!(cli.command, Command::Run(_) | Command::Robots(_));
     let default = match cli.verbose {
+        0 if live => "warn,base_station::station=info,basestation::commands::run=info",
         0 => "warn",
         1 => "info",
         2 => "debug",
@@ -63,10 +67,11 @@ fn main() -> ExitCode {
         // No colour codes in a log piped to a file.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    // `sim`'s outcome is its exit code (commands/outcome.rs); the rest succeed or fail.
+    // How `run` and `sim` ended is their exit code (commands/outcome.rs); the rest
+    // succeed or fail.
     let done = |r: anyhow::Result<()>| r.map(|()| None);
     let result = match cli.command {
-        Command::Run(args) => done(commands::run::run(args)),
+        Command::Run(args) => commands::run::run(args).map(Some),
         Command::Sim(args) => commands::sim::run(args).map(Some),
         Command::Check(args) => done(commands::check::run(args)),
         Command::Decode(args) => done(commands::decode::run(args)),

@@ -294,7 +294,12 @@ fn run_over_udp_challenges_every_robot() {
             }
         }
     }
-    assert!(child.wait().unwrap().success());
+    // Nobody answered: exit code 5, and the run says so.
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(5), "{err}");
+    assert!(err.contains("no robot ever linked"), "{err}");
     assert_eq!(hellos.len(), 3);
 
     // The run's recording: `decode` finds the challenges to every robot in its radio

@@ -229,14 +229,18 @@ fn open_browser(dir: &Path) -> Option<(Killed, Page)> {
     Some((browser, page))
 }
 
-/// Waits for the run to end; its report.
-fn finished(mut sim: Killed, report: &Path) -> Value {
+/// Waits for the run to end; its report and exit code.
+fn finished(mut sim: Killed, report: &Path) -> (Value, Option<i32>) {
     let start = Instant::now();
-    while sim.0.try_wait().unwrap().is_none() {
+    let code = loop {
+        if let Some(status) = sim.0.try_wait().unwrap() {
+            break status.code();
+        }
         assert!(start.elapsed() < Duration::from_secs(60), "sim did not end");
         std::thread::sleep(Duration::from_millis(200));
-    }
-    serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap()
+    };
+    let report = serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
+    (report, code)
 }
 
 /// The first time (simulated s) of event `name` in a report, if any.
@@ -291,7 +295,7 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
     );
     page.click("resume");
 
-    let r = finished(sim, &report);
+    let (r, _) = finished(sim, &report);
     let at = |name: &str| {
         event_at(&r, name).unwrap_or_else(|| panic!("no {name} in {}", r["station_events"]))
     };
@@ -457,7 +461,9 @@ fn requests_from_other_names_origins_or_unpaired_are_refused() {
         &request("POST", "/api/command", &host, &[&token, json_type], stop),
     );
     assert_eq!(status, 200, "{body}");
-    let r = finished(sim, &report);
+    let (r, code) = finished(sim, &report);
+    // The emergency stop held to the end: stopped by the operator, exit code 4.
+    assert_eq!(code, Some(4));
     let events: Vec<&str> = r["station_events"]
         .as_array()
         .unwrap()
@@ -522,7 +528,7 @@ setTimeout(() => document.getElementById("f").submit(), 1000);
     page.call("Page.navigate", json!({ "url": evil }));
     std::thread::sleep(Duration::from_secs(4));
 
-    let r = finished(sim, &report);
+    let (r, _) = finished(sim, &report);
     let stopped = event_at(&r, "operator_emergency_stop").expect("the operator's stop");
     assert_eq!(
         event_at(&r, "operator_resume"),

@@ -247,7 +247,8 @@ fn a_localization_feed_that_stops_is_reported_and_stops_the_fleet() {
         let sealed = seal("fixes", bad, unix_us() + k as u64);
         noise.send_to(sealed.as_bytes(), &feed).unwrap();
     }
-    run.finish(Duration::from_secs(30));
+    // The fleet stopped short of the goal: exit code 3.
+    run.finish_with(Duration::from_secs(30), 3);
     robots.finish(Duration::from_secs(30));
 
     let r = json(&run_report);
@@ -419,7 +420,8 @@ fn nmea_over_tcp_is_read_and_forwarded() {
     for s in &sources {
         args.extend(["--nmea", s]);
     }
-    Process::start(&site, &args).finish(Duration::from_secs(40));
+    // A run of fixed duration, over before the goal: exit code 3.
+    Process::start(&site, &args).finish_with(Duration::from_secs(40), 3);
     robots.finish(Duration::from_secs(30));
 
     let run = json(&run_report);
@@ -434,4 +436,54 @@ fn nmea_over_tcp_is_read_and_forwarded() {
         "{run}"
     );
     assert_eq!(json(&report)["collisions"], 0);
+}
+
+/// A station whose fleet key differs from the robots': within seconds it names the robots
+/// it does not hear and says that frames fail authentication, with what to check; it
+/// exits 5 (never linked). Issue 30.
+#[test]
+fn a_station_with_another_key_says_so_and_exits_5() {
+    use std::os::unix::fs::PermissionsExt;
+    let site = Site::new("other-key");
+    let other = site.path("other.key");
+    std::fs::write(&other, format!("{}\n", "a7".repeat(32))).unwrap();
+    std::fs::set_permissions(&other, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let mut robots = Process::start(
+        &site,
+        &[
+            "robots",
+            "paper-passage",
+            "--udp",
+            "127.0.0.1:0",
+            "--duration",
+            "12",
+        ],
+    );
+    let at = robots.address();
+    let run = Process::start_keyed(
+        &other,
+        &[
+            "run",
+            "paper-passage",
+            "--udp",
+            &at,
+            "--bind",
+            "127.0.0.1:0",
+            "--duration",
+            "7",
+        ],
+    );
+    let err = run.finish_with(Duration::from_secs(30), 5);
+    robots.finish(Duration::from_secs(30));
+    for said in [
+        "robot 0 not heard",
+        "robot 2 not heard",
+        "frames rejected (bad_tag): frames fail authentication",
+        "share the fleet key",
+        "no robot ever linked",
+    ] {
+        assert!(err.contains(said), "not said: {said}\n{err}");
+    }
+    // No colour codes in a pipe.
+    assert!(!err.contains('\u{1b}'), "{err}");
 }

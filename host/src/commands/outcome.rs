@@ -1,7 +1,6 @@
 //! How a run ended, as the process's exit code: distinct, so that a script can tell a
 //! reached goal from a stop, a missed goal, a fleet that never answered and bad input
-//! (`README.md#exit-codes`). `sim` exits with them; `run` says its outcome (a fleet that
-//! never linked, in words) and exits 0 for now.
+//! (`README.md#exit-codes`). The same in `sim` and `run`.
 
 use std::process::ExitCode;
 

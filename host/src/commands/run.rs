@@ -68,7 +68,7 @@ pub struct RunArgs {
     pub key: crate::key::KeyArgs,
 }
 
-pub fn run(args: RunArgs) -> anyhow::Result<()> {
+pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
     let scenario = super::load_scenario(&args.scenario)?;
     let key = crate::key::require_key(&args.key)?;
     let transport: Box<dyn Transport> = match (&args.port, args.udp) {
@@ -146,6 +146,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut last_report = 0u32;
     let mut arrived_ms = None;
     let mut timing = crate::live::timing::LoopTiming::default();
+    let mut diagnosis = crate::live::diagnosis::Diagnosis::default();
+    let ids: Vec<u16> = scenario.robots.iter().map(|r| r.id).collect();
     while !stop.load(Ordering::SeqCst) {
         let now_ms = start.elapsed().as_millis() as u32;
         if args.duration.is_some_and(|d| now_ms as f64 / 1000.0 >= d) {
@@ -203,7 +205,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         timing.period(began.saturating_duration_since(tick), began.elapsed());
         if now_ms / 1000 != last_report {
             last_report = now_ms / 1000;
-            log_link(&station, now_ms, last_report.is_multiple_of(5));
+            diagnosis.look(&station, &ids, now_ms);
+            // A status line every 5 s, each robot's every 15 s.
+            if last_report.is_multiple_of(5) {
+                log_link(&station, now_ms, last_report.is_multiple_of(15));
+            }
             if let Some(l) = localization
                 .as_ref()
                 .filter(|_| last_report.is_multiple_of(5))
@@ -244,15 +250,13 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
-    // Its exit code stays 0 on every end for now (`sim`'s are distinct): the
-    // outcome is said, not coded.
     let outcome = super::outcome::Outcome::of(&station, stop.load(Ordering::SeqCst));
     if outcome == super::outcome::Outcome::NeverLinked {
         eprintln!(
             "no robot ever linked: check the transport's address (--udp / --port) and that the station and the robots share the fleet key"
         );
     }
-    Ok(())
+    Ok(outcome)
 }
 
 /// The transport, failing soft: a modem that errors (unplugged, its peer gone) is logged

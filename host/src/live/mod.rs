@@ -1,8 +1,9 @@
 //! What runs beside a live run (`run`, `robots`, `sim --realtime`): the operator's
 //! console, the site's feeds (localization and scans, in and out), the recording and live
-//! stream, and the control loop's timing.
+//! stream, the control loop's timing, and what is wrong with the link, in words.
 
 pub mod console;
+pub mod diagnosis;
 pub mod feeds;
 pub mod recording;
 pub mod timing;

@@ -59,10 +59,15 @@ impl Drop for Process {
 
 impl Process {
     pub fn start(site: &Site, args: &[&str]) -> Self {
+        Self::start_keyed(&site.path("fleet.key"), args)
+    }
+
+    /// [`Process::start`] with the key in `key` (a site's other key).
+    pub fn start_keyed(key: &Path, args: &[&str]) -> Self {
         let child = super::basestation()
             .args(args)
             .arg("--key-file")
-            .arg(site.path("fleet.key"))
+            .arg(key)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -104,8 +109,15 @@ impl Process {
             .to_string()
     }
 
-    /// Waits for the process to end by itself; its stderr.
-    pub fn finish(mut self, limit: Duration) -> String {
+    /// Waits for the process to end by itself, successfully (exit code 0: `run`'s goal
+    /// reached); its stderr.
+    pub fn finish(self, limit: Duration) -> String {
+        self.finish_with(limit, 0)
+    }
+
+    /// Waits for the process to end by itself with exit code `code` (README.md, exit
+    /// codes); its stderr.
+    pub fn finish_with(mut self, limit: Duration, code: i32) -> String {
         let start = Instant::now();
         while self.0.try_wait().unwrap().is_none() {
             assert!(start.elapsed() < limit, "still running after {limit:?}");
@@ -119,7 +131,7 @@ impl Process {
                 err
             }
         };
-        assert!(self.0.wait().unwrap().success(), "{err}");
+        assert_eq!(self.0.wait().unwrap().code(), Some(code), "{err}");
         err
     }
 }
