@@ -211,6 +211,8 @@ pub struct World {
     pub options: SimOptions,
     pub t_us: u64,
     goal_at_us: Option<u64>,
+    /// Asked to end early (`sim --realtime` interrupted): the run ends after this step.
+    pub stop_requested: bool,
     injector: Injector,
     radio_params: RadioParams,
     scanner: Scanner,
@@ -308,6 +310,7 @@ impl World {
             options,
             t_us: 0,
             goal_at_us: None,
+            stop_requested: false,
         })
     }
 
@@ -506,6 +509,9 @@ impl World {
         while self.t_us < end_us {
             self.step(step_us)?;
             each_step(self);
+            if self.stop_requested {
+                break;
+            }
             if let Some(goal) = self.goal_at_us {
                 if self.t_us >= goal + (self.options.settle_s * 1e6) as u64 {
                     break;

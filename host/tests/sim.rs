@@ -296,3 +296,68 @@ fn piped_logs_are_plain_and_a_missed_goal_exits_3() {
     let reached = r["goal_reached"].as_bool().unwrap();
     assert_eq!(out.status.code(), Some(if reached { 0 } else { 3 }));
 }
+
+/// Ctrl-C on `sim --realtime`: the report, the figure and a whole recording of the run so
+/// far, written in place of the last run's only at the end (the old recording stays whole
+/// while the run goes on); exit code 4 (stopped by the operator). Issue 30.
+#[test]
+fn an_interrupted_realtime_sim_writes_whole_files() {
+    let dir = common::scratch("e2e-sim-interrupted");
+    let (out, _) = common::sim_into(&dir, "paper-passage", &[]);
+    assert_eq!(out.status.code(), Some(0));
+    let recording = dir.join("run.mcap");
+    let before = std::fs::read(&recording).unwrap();
+    let sim = common::Killed(
+        common::basestation()
+            .args(["sim", "paper-passage", "--realtime", "--report"])
+            .arg(dir.join("report.json"))
+            .arg("--plot")
+            .arg(dir.join("figure.svg"))
+            .arg("--mcap")
+            .arg(&recording)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    assert_eq!(
+        std::fs::read(&recording).unwrap(),
+        before,
+        "the last run's recording is untouched while this one goes on"
+    );
+    let pid = sim.0.id().to_string();
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let mut sim = sim;
+    let status = sim.0.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(sim.0.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(4), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+    let t = r["sim_time_s"].as_f64().unwrap();
+    assert!(
+        (1.0..10.0).contains(&t),
+        "{t} s simulated before the interrupt"
+    );
+    assert!(std::fs::read_to_string(dir.join("figure.svg"))
+        .unwrap()
+        .starts_with("<svg"));
+    let bytes = std::fs::read(&recording).unwrap();
+    let mut messages = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        m.expect("a whole recording");
+        messages += 1;
+    }
+    assert!(messages > 100, "{messages}");
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}

@@ -94,19 +94,40 @@ pub fn create_parent(path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A run's report as JSON (`sim`, `robots`).
+/// A run's report as JSON (`sim`, `robots`), whole or not at all.
 pub fn write_report(report: &hil_sim::report::Report, path: &Path) -> anyhow::Result<()> {
-    std::fs::write(path, serde_json::to_string_pretty(report)? + "\n")
-        .with_context(|| format!("cannot write {}", path.display()))
+    let text = serde_json::to_string_pretty(report)? + "\n";
+    replace(path, |partial| {
+        std::fs::write(partial, &text)
+            .with_context(|| format!("cannot write {}", partial.display()))
+    })
+}
+
+/// Where a file is written before it takes `path`'s place.
+pub fn partial_path(path: &Path) -> std::path::PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    path.with_file_name(name)
+}
+
+/// Writes `path` through `write` to a partial file beside it, then renames it into
+/// place: an interrupted run never leaves half a file, nor loses the last whole one.
+pub fn replace(path: &Path, write: impl FnOnce(&Path) -> anyhow::Result<()>) -> anyhow::Result<()> {
+    let partial = partial_path(path);
+    write(&partial)?;
+    std::fs::rename(&partial, path)
+        .with_context(|| format!("cannot move {} to {}", partial.display(), path.display()))
 }
 
 /// A run's CSV trace (`sim --trace`, `robots --trace`).
 pub fn write_trace(world: &hil_sim::world::World, path: &Path) -> anyhow::Result<()> {
     let roles: Vec<_> = world.robots.iter().map(|r| (r.id, r.role)).collect();
-    let file =
-        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    hil_sim::trace::write_csv(&world.recorder, &roles, std::io::BufWriter::new(file))
-        .with_context(|| format!("cannot write {}", path.display()))
+    replace(path, |partial| {
+        let file = std::fs::File::create(partial)
+            .with_context(|| format!("cannot create {}", partial.display()))?;
+        hil_sim::trace::write_csv(&world.recorder, &roles, std::io::BufWriter::new(file))
+            .with_context(|| format!("cannot write {}", partial.display()))
+    })
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]

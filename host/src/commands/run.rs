@@ -247,8 +247,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
     }
     eprintln!("{}", serde_json::to_string(&summary)?);
     if let Some(path) = &args.report {
-        std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        let text = serde_json::to_string_pretty(&summary)? + "\n";
+        super::replace(path, |partial| {
+            std::fs::write(partial, &text)
+                .with_context(|| format!("cannot write {}", partial.display()))
+        })?;
     }
     let outcome = super::outcome::Outcome::of(&station, stop.load(Ordering::SeqCst));
     if outcome == super::outcome::Outcome::NeverLinked {

@@ -4,6 +4,8 @@
 //! and an SVG figure.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use anyhow::Context;
 use clap::Args;
@@ -94,15 +96,26 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
         .mcap
         .unwrap_or_else(|| PathBuf::from(format!("out/{name}.mcap")));
     super::create_parent(&mcap_path)?;
-    // Recorded while the simulation runs, on a thread of its own.
+    // Recorded while the simulation runs, on a thread of its own, to a partial file
+    // renamed into place at the end: an interrupted run never truncates the last one.
+    let mcap_partial = super::partial_path(&mcap_path);
     let mut recording: Option<Result<Recording, String>> = None;
+    // In real time, Ctrl-C / SIGTERM end the run early; its report, figure and
+    // recording are written as for any end (exit code 4).
+    let interrupted = Arc::new(AtomicBool::new(false));
+    if args.realtime {
+        let flag = interrupted.clone();
+        ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
+            .context("installing Ctrl-C")?;
+    }
     let empty_site = (scenario.clone(), options.clone());
     let result = simulate_with(scenario, options, |world| {
         match &mut recording {
-            None => recording = Some(Recording::create(world, &mcap_path)),
+            None => recording = Some(Recording::create(world, &mcap_partial)),
             Some(Ok(r)) if world.t_us.is_multiple_of(Recording::FEED_EVERY_US) => r.feed(world),
             Some(_) => {}
         }
+        world.stop_requested |= interrupted.load(Ordering::SeqCst);
         let t = world.t_us as f64 / 1e6;
         let permille = (t / end.max(1e-9) * 1000.0) as u64;
         if permille != bar.position() {
@@ -156,20 +169,31 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
         super::create_parent(p)?;
     }
     super::write_report(&report, &report_path)?;
-    hil_sim::plot::write_svg(&world, &report, &plot_path)
-        .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", plot_path.display()))?;
+    super::replace(&plot_path, |partial| {
+        hil_sim::plot::write_svg(&world, &report, partial)
+            .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", plot_path.display()))
+    })?;
     if let Some(path) = &args.robots.trace {
         super::write_trace(&world, path)?;
     }
     let recording = match recording {
         Some(r) => r,
-        None => Recording::create(&world, &mcap_path),
+        None => Recording::create(&world, &mcap_partial),
     };
     recording
         .and_then(|r| r.finish(&world, &report))
         .map_err(anyhow::Error::msg)?;
+    std::fs::rename(&mcap_partial, &mcap_path)
+        .with_context(|| format!("cannot write {}", mcap_path.display()))?;
     print_table(&report, &report_path, &plot_path, &mcap_path);
-    Ok(super::outcome::Outcome::of(&world.station, false))
+    let interrupted = interrupted.load(Ordering::SeqCst);
+    if interrupted {
+        eprintln!(
+            "interrupted: report, figure and recording written up to {:.1} s",
+            world.t_us as f64 / 1e6
+        );
+    }
+    Ok(super::outcome::Outcome::of(&world.station, interrupted))
 }
 
 // Writes to stdout, ignoring a closed pipe (`| head`) instead of panicking.

@@ -11,7 +11,7 @@ mod gate;
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::SystemTime;
 
@@ -29,7 +29,8 @@ use foxglove::{
 
 pub struct LiveRecording {
     _ctx: Arc<Context>,
-    writer: Option<McapWriterHandle<BufWriter<std::fs::File>>>,
+    /// The writer, the partial file it writes and the path it takes at the end.
+    writer: Option<(McapWriterHandle<BufWriter<std::fs::File>>, PathBuf, PathBuf)>,
     server: Option<WebSocketServerHandle>,
     radio: Arc<RawChannel>,
     events: Channel<Log>,
@@ -59,13 +60,16 @@ impl LiveRecording {
         let ctx = Context::new();
         let writer = match mcap {
             Some(path) => {
-                let file = std::fs::File::create(path)
-                    .with_context(|| format!("cannot create {}", path.display()))?;
+                // Written beside, renamed into place when it closes: an interrupted run
+                // never leaves the last recording truncated.
+                let partial = crate::commands::partial_path(path);
+                let file = std::fs::File::create(&partial)
+                    .with_context(|| format!("cannot create {}", partial.display()))?;
                 let writer = McapWriter::new()
                     .context(&ctx)
                     .create(BufWriter::new(file))
-                    .with_context(|| format!("cannot write {}", path.display()))?;
-                Some(writer)
+                    .with_context(|| format!("cannot write {}", partial.display()))?;
+                Some((writer, partial, path.to_path_buf()))
             }
             None => None,
         };
@@ -172,9 +176,10 @@ impl LiveRecording {
         if let Some(server) = self.server {
             server.stop().wait_blocking();
         }
-        match self.writer {
-            Some(w) => w.close().map(|_| ()).context("cannot finish the recording"),
-            None => Ok(()),
-        }
+        let Some((writer, partial, path)) = self.writer else {
+            return Ok(());
+        };
+        writer.close().context("cannot finish the recording")?;
+        std::fs::rename(&partial, &path).with_context(|| format!("cannot write {}", path.display()))
     }
 }
