@@ -139,6 +139,14 @@ impl Recording {
             .context(&ctx)
             .create(std::io::BufWriter::new(file))
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let metadata = run_metadata(
+            &world.scenario.name,
+            Some(world.options.seed),
+            world.options.firmware.name(),
+            std::time::SystemTime::now(),
+        );
+        mcap.write_metadata(METADATA_NAME, metadata)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         let mut writer = Writer::new(&ctx, world)?;
         let map = ctx.channel_builder("/map").build::<SceneUpdate>();
         map.log_with_time(

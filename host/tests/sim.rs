@@ -278,6 +278,22 @@ fn street_crossing_reports_and_records_the_movers() {
     assert!(*tracks > samples / 2, "{tracks} of {samples}");
     // The shipped layout shows them.
     assert_layout_fits(&schemas, &[]);
+    // A metadata record says what ran, which build, since when.
+    let meta = mcap::read::LinearReader::new(&bytes)
+        .unwrap()
+        .filter_map(|r| match r.unwrap() {
+            mcap::records::Record::Metadata(m) => Some(m),
+            _ => None,
+        })
+        .find(|m| m.name == "run")
+        .expect("a metadata record");
+    let get = |k: &str| meta.metadata.get(k).cloned().unwrap_or_default();
+    assert_eq!(get("scenario"), "street-crossing");
+    assert_eq!(get("seed"), "1");
+    assert_eq!(get("firmware"), "native");
+    assert_eq!(get("version"), env!("CARGO_PKG_VERSION"));
+    assert!(!get("git_revision").is_empty());
+    assert!(get("started_utc").starts_with("20"), "{meta:?}");
 }
 
 /// Logs piped to a file carry no colour codes; the plaza's leader does not get through

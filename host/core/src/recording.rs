@@ -20,6 +20,32 @@ use foxglove::{Channel, Context, PartialMetadata, RawChannel, Schema};
 use crate::geometry::Obstacle;
 use crate::tracking::{Motion, TrackView};
 
+/// The recording's metadata record (`run`): what ran, which build, since when.
+pub const METADATA_NAME: &str = "run";
+
+/// The metadata of a recording of `scenario` (seed, firmware where simulated): the
+/// program's version and git revision, and the start in UTC (RFC 3339).
+pub fn run_metadata(
+    scenario: &str,
+    seed: Option<u64>,
+    firmware: &str,
+    started: std::time::SystemTime,
+) -> std::collections::BTreeMap<String, String> {
+    let since = started
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
+    let utc = chrono::DateTime::from_timestamp(since.as_secs() as i64, since.subsec_nanos())
+        .map_or_else(|| "unknown".into(), |t| t.to_rfc3339());
+    let mut m = std::collections::BTreeMap::new();
+    m.insert("scenario".into(), scenario.into());
+    m.insert("seed".into(), seed.map_or("none".into(), |s| s.to_string()));
+    m.insert("firmware".into(), firmware.into());
+    m.insert("version".into(), env!("CARGO_PKG_VERSION").into());
+    m.insert("git_revision".into(), env!("SWEEPER_GIT_REVISION").into());
+    m.insert("started_utc".into(), utc);
+    m
+}
+
 /// The frame every position is in: the site's metric frame.
 pub const FRAME: &str = "site";
 

@@ -124,6 +124,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
     let mut recording = match (&args.mcap, args.serve.live) {
         (None, None) => None,
         (mcap, live) => Some(crate::live::recording::LiveRecording::create(
+            &scenario.name,
             mcap.as_deref(),
             live,
             &args.serve.live_origin,

@@ -83,6 +83,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     let console = crate::live::console::Console::open(args.serve.console, &scenario)?;
     let mut live = match args.serve.live {
         Some(addr) => Some(crate::live::recording::LiveRecording::create(
+            &scenario.name,
             None,
             Some(addr),
             &args.serve.live_origin,

@@ -164,7 +164,12 @@ impl Fleet {
         let before = status.telemetry.map_or(0, |p| p.faults);
         for (bit, fault, halts) in REPORTED_FAULTS {
             if t.faults & bit != 0 && before & bit == 0 {
-                tracing::warn!(robot = id, fault, "robot fault");
+                // A halting fault stops the mission: an error; the rest a warning.
+                if halts {
+                    tracing::error!(robot = id, fault, "robot fault: the fleet stops");
+                } else {
+                    tracing::warn!(robot = id, fault, "robot fault");
+                }
                 heard.events.push(StationEvent::RobotFault {
                     robot: id,
                     fault,

@@ -133,7 +133,7 @@ impl BaseStation {
                 }
                 FixChange::Back(robot) => tracing::info!(robot, "fixes back"),
                 FixChange::Halt => {
-                    tracing::warn!("a robot has had no fix too long: the fleet stops")
+                    tracing::error!("a robot has had no fix too long: the fleet stops")
                 }
                 FixChange::Resume => tracing::info!("every robot has fixes: the fleet goes on"),
             }

@@ -418,7 +418,7 @@ impl BaseStation {
         };
         if let Some(ready) = ready {
             self.gate = Gate::LeaderLost { ready };
-            tracing::warn!("no fresh telemetry from the leader: fleet stops");
+            tracing::error!("no fresh telemetry from the leader: fleet stops");
             self.events.push(StationEvent::LeaderLost { at_ms: now_ms });
         }
         // Followers stop on their own when leader states stop; the leader stops when

@@ -50,8 +50,10 @@ pub fn now_ns() -> u64 {
 
 impl LiveRecording {
     /// Records to `mcap` and/or serves on `live` (either may be absent; browsers' pages from
-    /// `origins` and the default ones may open it), a pose channel per robot of `robots`.
+    /// `origins` and the default ones may open it), a pose channel per robot of `robots`;
+    /// the file opens with a metadata record of `scenario`'s run.
     pub fn create(
+        scenario: &str,
         mcap: Option<&Path>,
         live: Option<SocketAddr>,
         origins: &[String],
@@ -68,6 +70,15 @@ impl LiveRecording {
                 let writer = McapWriter::new()
                     .context(&ctx)
                     .create(BufWriter::new(file))
+                    .with_context(|| format!("cannot write {}", partial.display()))?;
+                let metadata = base_station::recording::run_metadata(
+                    scenario,
+                    None,
+                    "robots",
+                    std::time::SystemTime::now(),
+                );
+                writer
+                    .write_metadata(base_station::recording::METADATA_NAME, metadata)
                     .with_context(|| format!("cannot write {}", partial.display()))?;
                 Some((writer, partial, path.to_path_buf()))
             }
