@@ -396,3 +396,63 @@ fn robot_config_writes_a_page_the_firmware_accepts() {
     let err = refused(&[]);
     assert!(err.contains("no fleet key"), "{err}");
 }
+
+/// Every documentation link in `--help` (the program's and each command's) names a page
+/// that exists and a heading (or `<a id>`) on it, as GitHub makes anchors; every command
+/// the program has is in README's table. Issue 30.
+#[test]
+fn help_links_and_readme_agree_with_the_program() {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+    let help = |args: &[&str]| {
+        let out = common::basestation().args(args).output().unwrap();
+        assert!(out.status.success(), "{args:?}");
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let top = help(&["--help"]);
+    let commands: Vec<String> = top
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+        .filter(|c| c != "help")
+        .collect();
+    assert!(commands.len() >= 8, "{commands:?}");
+    let readme = std::fs::read_to_string(format!("{root}/README.md")).unwrap();
+    let mut texts = vec![top.clone()];
+    for c in &commands {
+        assert!(
+            readme.contains(&format!("| `{c}")),
+            "README's table lacks `{c}`"
+        );
+        texts.push(help(&[c, "--help"]));
+    }
+    let slug = |heading: &str| -> String {
+        heading
+            .trim()
+            .to_lowercase()
+            .chars()
+            .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-' || *c == '_')
+            .map(|c| if c == ' ' { '-' } else { c })
+            .collect()
+    };
+    let mut checked = 0;
+    for text in &texts {
+        for word in text.split(|c: char| c.is_whitespace() || "(),;".contains(c)) {
+            let Some((page, anchor)) = word.split_once(".md#") else {
+                continue;
+            };
+            let anchor = anchor.trim_end_matches(['.', ':', ')']);
+            let page = format!("{root}/{page}.md");
+            let doc =
+                std::fs::read_to_string(&page).unwrap_or_else(|_| panic!("{page}: no such page"));
+            let found = doc.lines().any(|l| {
+                l.starts_with('#') && slug(l.trim_start_matches('#')) == anchor
+                    || l.contains(&format!("id=\"{anchor}\""))
+            });
+            assert!(found, "{word}: no such anchor in {page}");
+            checked += 1;
+        }
+    }
+    assert!(checked >= 5, "{checked} links checked");
+}

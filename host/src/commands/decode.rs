@@ -6,7 +6,8 @@
 //! With the fleet key (`--key-file` / `SWEEPER_FLEET_KEY`), handshake frames are verified
 //! and the sessions they announce are learnt, so that later frames of those senders are
 //! verified too. Without it, or before a sender's session is seen, frames are decoded but
-//! marked `"verified": false`.
+//! marked `"verified": false`. A simulation's recording is verified with `--seed N`: `sim`
+//! derives its key from the seed.
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
@@ -25,6 +26,10 @@ pub struct DecodeArgs {
     pub file: Option<PathBuf>,
     #[command(flatten)]
     pub key: crate::key::KeyArgs,
+    /// Verify with the key a simulation derives from this seed (`sim --seed N`, the
+    /// scenario's seed otherwise): a `sim` recording's frames.
+    #[arg(long, conflicts_with = "key_file")]
+    pub seed: Option<u64>,
 }
 
 fn address(a: Address) -> String {
@@ -177,7 +182,10 @@ fn decode_recording(file: std::fs::File, key: Option<&MasterKey>) -> anyhow::Res
 }
 
 pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
-    let key = args.key.load()?;
+    let key = match args.seed {
+        Some(seed) => Some(MasterKey::from_bytes(&hil_sim::world::sim_key_bytes(seed))),
+        None => args.key.load()?,
+    };
     if let Some(path) = args.file.as_ref().filter(|p| p.as_os_str() != "-") {
         let mut head = [0u8; 8];
         let is_mcap = std::fs::File::open(path)

@@ -39,7 +39,7 @@ pub struct RobotsArgs {
     pub duration: Option<f64>,
     /// Publish the robots' position fixes to the base station instead of handing them to
     /// the robots directly: `feed:ADDR` (the line feed over UDP) or `nmea:ID=ADDR` (NMEA
-    /// 0183 over UDP for robot ID; repeat per robot). See docs/operating.md#localization.
+    /// 0183 over UDP for robot ID; repeat per robot). See docs/operating.md#4-localization.
     #[arg(long = "publish-fixes", value_name = "KIND:ADDR")]
     pub publish_fixes: Vec<PublishArg>,
     /// Send the leader's scans (hits on what the map does not hold, 10 Hz) as the scan

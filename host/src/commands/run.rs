@@ -37,7 +37,7 @@ pub struct RunArgs {
     /// slots) before stopping the fleet, s.
     #[arg(long, default_value_t = 5.0)]
     pub settle: f64,
-    /// Read the line feed of fixes (docs/operating.md#localization) from UDP datagrams to
+    /// Read the line feed of fixes (docs/operating.md#4-localization) from UDP datagrams to
     /// this local address, and forward them to the robots.
     #[arg(long, value_name = "ADDR")]
     pub fix_feed: Option<SocketAddr>,
@@ -56,7 +56,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "NET")]
     pub feed_allow: Vec<crate::live::feeds::gate::AllowNet>,
     /// Write what the run did (station events, link and localization counts) here at the
-    /// end, as JSON (docs/operating.md#the-run-report).
+    /// end, as JSON (docs/operating.md#6-the-run).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<std::path::PathBuf>,
     /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
