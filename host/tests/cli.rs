@@ -251,6 +251,52 @@ fn run_refuses_to_start_without_a_key() {
     assert!(err.contains("no fleet key"), "{err}");
 }
 
+/// `run`'s transport and NMEA flags, as a new user meets them: without a transport both
+/// ways are named (usage, exit 2); `--udp` takes a host name; `--nmea` for a robot the
+/// site does not have is refused up front (exit 1). Issue 30.
+#[test]
+fn run_names_its_transports_takes_host_names_and_checks_nmea_ids() {
+    let key = "SWEEPER_FLEET_KEY";
+    let run = |args: &[&str]| {
+        let out = common::basestation()
+            .arg("run")
+            .args(args)
+            .env(key, "33".repeat(32))
+            .env_remove("SWEEPER_KEY_FILE")
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    let (code, err) = run(&["paper-obstacles"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--port <PORT>|--udp <UDP>"), "{err}");
+    let (code, err) = run(&[
+        "paper-obstacles",
+        "--udp",
+        "localhost:9",
+        "--bind",
+        "127.0.0.1:0",
+        "--duration",
+        "1",
+    ]);
+    assert_eq!(code, Some(5), "a host name is an address: {err}");
+    let (code, err) = run(&[
+        "paper-obstacles",
+        "--udp",
+        "127.0.0.1:9",
+        "--nmea",
+        "7=udp:127.0.0.1:0",
+    ]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("the site has no robot 7 (its robots: 0, 1, 2)"),
+        "{err}"
+    );
+}
+
 #[test]
 fn run_over_udp_challenges_every_robot() {
     use protocol::{frame, FrameDecoder, Message};

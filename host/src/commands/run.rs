@@ -16,16 +16,18 @@ use clap::Args;
 use serde_json::json;
 
 #[derive(Args, Debug)]
+#[command(group(clap::ArgGroup::new("transport").required(true).args(["port", "udp"])))]
 pub struct RunArgs {
     /// A site/scenario file, or a shipped scenario's name.
     pub scenario: String,
     /// Serial device of the radio modem (e.g. /dev/ttyUSB0).
-    #[arg(long, required_unless_present = "udp", conflicts_with = "udp")]
+    #[arg(long)]
     pub port: Option<String>,
     #[arg(long, default_value_t = 115_200)]
     pub baud: u32,
-    /// Send frames as UDP datagrams to this address (a radio bridge or broadcast).
-    #[arg(long)]
+    /// Send frames as UDP datagrams to this address (a radio bridge or broadcast):
+    /// HOST:PORT, a name or an IP address.
+    #[arg(long, value_parser = peer_address)]
     pub udp: Option<SocketAddr>,
     /// Local UDP address to bind.
     #[arg(long, default_value = "0.0.0.0:0")]
@@ -78,7 +80,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
         (None, Some(peer)) => {
             Box::new(Udp::open(args.bind, peer).context("cannot open the UDP socket")?)
         }
-        (None, None) => unreachable!("clap requires --port or --udp"),
+        (None, None) => anyhow::bail!("no radio: give --port DEV or --udp HOST:PORT"),
     };
     let mut transport = Modem {
         transport,
@@ -261,6 +263,20 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
         );
     }
     Ok(outcome)
+}
+
+/// `--udp`'s HOST:PORT, a name resolved (its first IPv4 address, else its first).
+fn peer_address(text: &str) -> Result<SocketAddr, String> {
+    use std::net::ToSocketAddrs;
+    let all: Vec<SocketAddr> = text
+        .to_socket_addrs()
+        .map_err(|e| format!("{text}: not HOST:PORT, or the name does not resolve ({e})"))?
+        .collect();
+    all.iter()
+        .find(|a| a.is_ipv4())
+        .or(all.first())
+        .copied()
+        .ok_or_else(|| format!("{text}: the name has no address"))
 }
 
 /// The transport, failing soft: a modem that errors (unplugged, its peer gone) is logged

@@ -151,6 +151,16 @@ impl Localization {
         if feed.is_none() && nmea.is_empty() {
             return Ok(None);
         }
+        let ids: Vec<u16> = scenario.robots.iter().map(|r| r.id).collect();
+        if let Some(stray) = nmea.iter().find(|n| !ids.contains(&n.robot)) {
+            let list: Vec<String> = ids.iter().map(u16::to_string).collect();
+            anyhow::bail!(
+                "--nmea {}=…: the site has no robot {} (its robots: {})",
+                stray.robot,
+                stray.robot,
+                list.join(", ")
+            );
+        }
         let (tx, lines) = mpsc::sync_channel(QUEUE);
         let dropped = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
         let mut inputs = Vec::new();
