@@ -94,6 +94,16 @@ impl Page {
         r["result"]["value"].clone()
     }
 
+    /// A screenshot of the page to `path` (looked at by a person: the closing notes).
+    fn screenshot(&mut self, path: &Path) {
+        let shot = self.call("Page.captureScreenshot", json!({ "format": "png" }));
+        let png = base64::engine::general_purpose::STANDARD
+            .decode(shot["data"].as_str().unwrap())
+            .unwrap();
+        std::fs::write(path, &png).unwrap();
+        println!("screenshot: {}", path.display());
+    }
+
     /// A mouse click at the centre of the element `id`, as a finger or a mouse gives it.
     fn click(&mut self, id: &str) {
         let rect = self.eval(&format!(
@@ -274,12 +284,7 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
          return n; })()",
     );
     assert!(red.as_u64().unwrap() > 20, "the leader is not drawn: {red}");
-    let shot = page.call("Page.captureScreenshot", json!({ "format": "png" }));
-    let png = base64::engine::general_purpose::STANDARD
-        .decode(shot["data"].as_str().unwrap())
-        .unwrap();
-    std::fs::write(dir.join("console.png"), &png).unwrap();
-    println!("screenshot: {}", dir.join("console.png").display());
+    page.screenshot(&dir.join("console.png"));
 
     // Emergency stop: one click shows the confirmation, the second sends it.
     page.click("estop");
@@ -296,6 +301,12 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
     page.click("resume");
 
     let (r, _) = finished(sim, &report);
+    // The run's end stays served a moment: the page says it finished, and how.
+    let banner = page.eval("document.getElementById('banner').className");
+    let text = page.eval("document.getElementById('banner').textContent");
+    page.screenshot(&dir.join("console-finished.png"));
+    assert_eq!(banner, "finished", "{text}");
+    assert!(text.as_str().unwrap().contains("The run finished: "), "{text}");
     let at = |name: &str| {
         event_at(&r, name).unwrap_or_else(|| panic!("no {name} in {}", r["station_events"]))
     };
@@ -539,4 +550,71 @@ setTimeout(() => document.getElementById("f").submit(), 1000);
     for (t, id, v) in speeds(&trace).into_iter().filter(|s| s.0 > stopped + 1.0) {
         assert!(v.abs() < 0.01, "robot {id} at {v:.3} m/s, {t:.1} s");
     }
+}
+
+/// What the operator sees when something is wrong (issue 30): a latched emergency stop as
+/// a banner with Resume as the way out; a confirmation that expires; and, the station
+/// killed, the page greyed with a banner saying since when it is stale and every button
+/// disabled. Screenshots in the scratch directory.
+#[test]
+fn the_page_says_what_is_wrong_and_what_is_stale() {
+    let dir = common::scratch("console-stale");
+    let Some((_browser, mut page)) = open_browser(&dir) else {
+        return;
+    };
+    let (mut sim, url, _, _) = start_sim(&dir);
+    page.call("Page.navigate", json!({ "url": url }));
+    std::thread::sleep(Duration::from_secs(4));
+    let class = |page: &mut Page, id: &str| {
+        page.eval(&format!("document.getElementById('{id}').className"))
+    };
+    assert_eq!(class(&mut page, "banner"), "hidden", "nothing wrong yet");
+    let cells = page.eval("document.querySelectorAll('#robots tr:first-child td').length");
+    assert_eq!(cells, 5, "robot, mode, link, speed, off its slot");
+    page.screenshot(&dir.join("console-live.png"));
+
+    // A confirmation not given is withdrawn after 5 s.
+    page.click("estop");
+    assert_eq!(class(&mut page, "confirm"), "");
+    std::thread::sleep(Duration::from_secs(6));
+    assert_eq!(class(&mut page, "confirm"), "hidden");
+
+    // Latched: a banner that says so, and Resume the obvious way out.
+    page.click("estop");
+    page.click("confirm");
+    std::thread::sleep(Duration::from_millis(1500));
+    assert_eq!(class(&mut page, "banner"), "estop");
+    let text = page.eval("document.getElementById('banner').textContent");
+    assert!(
+        text.as_str().unwrap().contains("EMERGENCY STOP LATCHED"),
+        "{text}"
+    );
+    assert_eq!(class(&mut page, "resume"), "way-out");
+    page.screenshot(&dir.join("console-estop.png"));
+
+    // The station gone: stale, greyed, nothing to press.
+    sim.0.kill().unwrap();
+    let _ = sim.0.wait();
+    std::thread::sleep(Duration::from_secs(2));
+    assert_eq!(class(&mut page, "banner"), "stale");
+    let text = page.eval("document.getElementById('banner').textContent");
+    assert!(
+        text.as_str()
+            .unwrap()
+            .contains("No contact with the station since"),
+        "{text}"
+    );
+    assert_eq!(page.eval("document.body.classList.contains('stale')"), true);
+    for id in ["stop", "estop", "resume"] {
+        assert_eq!(
+            page.eval(&format!("document.getElementById('{id}').disabled")),
+            true,
+            "{id} enabled with the station gone"
+        );
+    }
+    assert_eq!(
+        page.eval("document.getElementById('status').textContent"),
+        "station gone"
+    );
+    page.screenshot(&dir.join("console-stale.png"));
 }

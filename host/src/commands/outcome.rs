@@ -50,6 +50,16 @@ impl Outcome {
         }
     }
 
+    /// In words, for the operator's page.
+    pub fn words(self) -> &'static str {
+        match self {
+            Outcome::GoalReached => "goal reached",
+            Outcome::GoalNotReached => "ended without reaching the goal",
+            Outcome::Stopped => "stopped by the operator",
+            Outcome::NeverLinked => "no robot ever linked",
+        }
+    }
+
     /// The process's exit code.
     pub fn exit_code(self) -> ExitCode {
         ExitCode::from(self.code())

@@ -257,6 +257,13 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
         })?;
     }
     let outcome = super::outcome::Outcome::of(&station, stop.load(Ordering::SeqCst));
+    if let Some(console) = console.as_ref().filter(|c| c.alive()) {
+        // The page says the run finished and how, not that the station is gone.
+        let now_ms = start.elapsed().as_millis() as u32;
+        let last = crate::live::console::snapshot(&station, now_ms);
+        console.publish(&crate::live::console::finished(last, outcome.words()));
+        std::thread::sleep(crate::live::console::FINISHED_SHOWN);
+    }
     if outcome == super::outcome::Outcome::NeverLinked {
         eprintln!(
             "no robot ever linked: check the transport's address (--udp / --port) and that the station and the robots share the fleet key"

@@ -188,13 +188,19 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
         .with_context(|| format!("cannot write {}", mcap_path.display()))?;
     print_table(&report, &report_path, &plot_path, &mcap_path);
     let interrupted = interrupted.load(Ordering::SeqCst);
+    let outcome = super::outcome::Outcome::of(&world.station, interrupted);
+    if let Some(console) = console.as_ref().filter(|c| c.alive()) {
+        let last = crate::live::console::snapshot(&world.station, world.base_ms());
+        console.publish(&crate::live::console::finished(last, outcome.words()));
+        std::thread::sleep(crate::live::console::FINISHED_SHOWN);
+    }
     if interrupted {
         eprintln!(
             "interrupted: report, figure and recording written up to {:.1} s",
             world.t_us as f64 / 1e6
         );
     }
-    Ok(super::outcome::Outcome::of(&world.station, interrupted))
+    Ok(outcome)
 }
 
 // Writes to stdout, ignoring a closed pipe (`| head`) instead of panicking.

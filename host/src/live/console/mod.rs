@@ -19,7 +19,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use anyhow::Context;
-use base_station::station::{BaseStation, OperatorCommand};
+use base_station::station::{BaseStation, Gate, OperatorCommand};
 use serde_json::{json, Value};
 
 /// Events the page shows, newest last.
@@ -186,6 +186,17 @@ pub fn map_json(scenario: &base_station::scenario::Scenario) -> Value {
     })
 }
 
+/// How long a run's end stays served before the process exits: the page polls four
+/// times a second.
+pub const FINISHED_SHOWN: std::time::Duration = std::time::Duration::from_millis(1500);
+
+/// The last snapshot of a run that ended, with how (`goal reached`, `stopped by the
+/// operator`…): the page says the run finished, not that the station is gone.
+pub fn finished(mut snapshot: Value, how: &str) -> Value {
+    snapshot["finished"] = json!(how);
+    snapshot
+}
+
 /// The fleet as the station knows it at `now_ms`: what the page draws.
 pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
     let leader = station.config().leader;
@@ -203,6 +214,10 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
                 "faults": t.map(|t| t.faults),
                 "linked": peer.is_some_and(|p| p.is_linked()),
                 "seen_ms_ago": peer.and_then(|p| p.last_rx_ms).map(|r| now_ms.wrapping_sub(r)),
+                "v": t.map(|t| 0.5e-3 * (t.wheel_mm_s[0] as f64 + t.wheel_mm_s[1] as f64)),
+                "tracking_error_m": t
+                    .filter(|_| *id != leader)
+                    .map(|t| t.tracking_error_mm as f64 / 1000.0),
             })
         })
         .collect();
@@ -229,8 +244,18 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
             json!({ "at_s": at_ms as f64 / 1000.0, "event": event, "robot": robot })
         })
         .collect();
+    let gate = match station.gate() {
+        Gate::Waiting => "waiting",
+        Gate::Assembling => "assembling",
+        Gate::Running => "running",
+        Gate::LeaderLost { .. } => "leader_lost",
+        Gate::Halted => "halted",
+    };
     json!({
         "t_s": now_ms as f64 / 1000.0,
+        "gate": gate,
+        "lost_after_ms": station.config().telemetry_timeout_ms,
+        "footprint_m": station.formation().spec().footprint,
         "robots": robots,
         "slots": slots,
         "route": route,
