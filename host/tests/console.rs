@@ -306,7 +306,10 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
     let text = page.eval("document.getElementById('banner').textContent");
     page.screenshot(&dir.join("console-finished.png"));
     assert_eq!(banner, "finished", "{text}");
-    assert!(text.as_str().unwrap().contains("The run finished: "), "{text}");
+    assert!(
+        text.as_str().unwrap().contains("The run finished: "),
+        "{text}"
+    );
     let at = |name: &str| {
         event_at(&r, name).unwrap_or_else(|| panic!("no {name} in {}", r["station_events"]))
     };

@@ -30,17 +30,39 @@ fn paper_passage_over(transport: &str) {
         _ => vec!["--port", &at],
     };
     let run_report = site.path("run.json");
+    let recording = site.path("run.mcap");
     let mut args = vec![
         "run",
         "paper-passage",
         "--report",
         run_report.to_str().unwrap(),
+        "--mcap",
+        recording.to_str().unwrap(),
     ];
     args.extend(&transport_args);
     let run = Process::start(&site, &args);
     run.finish(Duration::from_secs(110));
     let err = robots.finish(Duration::from_secs(30));
     println!("{transport}: {}", err.trim());
+    // The real run's recording has the scene a simulation's has: the shipped layout
+    // shows it (issue 30).
+    let channels = common::channels(&recording);
+    for topic in [
+        "/map",
+        "/tf",
+        "/robots",
+        "/route",
+        "/formation",
+        "/robot_1/state",
+    ] {
+        assert!(channels.contains_key(topic), "{topic} not recorded");
+    }
+    assert!(channels["/tf"].2 > 100, "{:?}", channels["/tf"]);
+    let schemas = channels
+        .iter()
+        .map(|(t, (_, data, _))| (t.clone(), data.clone()))
+        .collect();
+    common::assert_layout_fits(&schemas, &["/movers", "/tracks"]);
 
     let r = json(&report);
     assert_eq!(r["goal_reached"], true, "{r}");

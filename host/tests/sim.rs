@@ -166,57 +166,7 @@ fn basestation_sim_writes_report_and_figure() {
     assert!(lines.iter().all(|l| l["t_s"].as_f64().is_some()));
 
     // A run without movers records none.
-    assert_layout_fits(&schemas, &["/movers", "/tracks"]);
-}
-
-/// The shipped Foxglove layout shows this recording: every topic its panels name is a
-/// channel of it (robots beyond this run's three excepted: the layout has room for a
-/// 7-follower V, and the topics in `may_lack`), and every plotted field is in that
-/// channel's schema.
-fn assert_layout_fits(schemas: &BTreeMap<String, Vec<u8>>, may_lack: &[&str]) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/foxglove-layout.json");
-    let layout: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    let mut named = Vec::new();
-    for (panel, config) in layout["configById"].as_object().unwrap() {
-        if let Some(topics) = config["topics"].as_object() {
-            named.extend(topics.keys().map(|t| (panel, t.clone(), None)));
-        }
-        if let Some(t) = config["topicToRender"].as_str() {
-            named.push((panel, t.to_string(), None));
-        }
-        for p in config["paths"].as_array().into_iter().flatten() {
-            let value = p["value"].as_str().unwrap();
-            let (topic, field) = value.split_once('.').unwrap();
-            named.push((panel, topic.to_string(), Some(field.to_string())));
-        }
-    }
-    let absent_robot = |t: &str| {
-        t.strip_prefix("/robot_")
-            .and_then(|r| r.split('/').next())
-            .and_then(|id| id.parse::<u32>().ok())
-            .is_some_and(|id| id >= 3)
-    };
-    let mut checked = 0;
-    for (panel, topic, field) in named {
-        if absent_robot(&topic)
-            || (may_lack.contains(&topic.as_str()) && !schemas.contains_key(&topic))
-        {
-            continue;
-        }
-        let schema = schemas
-            .get(&topic)
-            .unwrap_or_else(|| panic!("layout panel {panel} shows {topic}: not recorded"));
-        if let Some(field) = field {
-            let name = field.as_bytes();
-            assert!(
-                schema.windows(name.len()).any(|w| w == name),
-                "layout panel {panel} plots {topic}.{field}: not in its schema"
-            );
-        }
-        checked += 1;
-    }
-    assert!(checked >= 8, "{checked} layout references checked");
+    common::assert_layout_fits(&schemas, &["/movers", "/tracks"]);
 }
 
 #[test]
@@ -294,7 +244,7 @@ fn street_crossing_reports_and_records_the_movers() {
     assert_eq!(schema, "foxglove.SceneUpdate");
     assert!(*tracks > samples / 2, "{tracks} of {samples}");
     // The shipped layout shows them.
-    assert_layout_fits(&schemas, &[]);
+    common::assert_layout_fits(&schemas, &[]);
     // A metadata record says what ran, which build, since when.
     let meta = mcap::read::LinearReader::new(&bytes)
         .unwrap()

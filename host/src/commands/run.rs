@@ -126,7 +126,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
     let mut recording = match (&args.mcap, args.serve.live) {
         (None, None) => None,
         (mcap, live) => Some(crate::live::recording::LiveRecording::create(
-            &scenario.name,
+            &scenario,
             mcap.as_deref(),
             live,
             &args.serve.live_origin,
@@ -204,6 +204,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
         if let Some(r) = recording.as_mut() {
             r.radio("base", &out, now_ns());
             r.station(&station, now_ms, now_ns());
+            r.scene(&station, now_ms, now_ns());
         }
         timing.period(began.saturating_duration_since(tick), began.elapsed());
         if now_ms / 1000 != last_report {

@@ -83,7 +83,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     let console = crate::live::console::Console::open(args.serve.console, &scenario)?;
     let mut live = match args.serve.live {
         Some(addr) => Some(crate::live::recording::LiveRecording::create(
-            &scenario.name,
+            &scenario,
             None,
             Some(addr),
             &args.serve.live_origin,
@@ -141,6 +141,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
             live_sent = world.transmitted.len();
             if world.t_us.is_multiple_of(100_000) {
                 live.station(&world.station, world.base_ms(), world.t_us * 1000);
+                live.scene(&world.station, world.base_ms(), world.t_us * 1000);
             }
         }
     });

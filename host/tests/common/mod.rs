@@ -3,6 +3,7 @@
 
 pub mod fleet;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output};
 
@@ -70,4 +71,74 @@ pub fn decode(path: &Path, key_hex: &str) -> Vec<serde_json::Value> {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect()
+}
+
+/// The shipped Foxglove layout shows this recording: every topic its panels name is a
+/// channel of it (robots beyond this run's three excepted: the layout has room for a
+/// 7-follower V, and the topics in `may_lack`), and every plotted field is in that
+/// channel's schema.
+pub fn assert_layout_fits(schemas: &BTreeMap<String, Vec<u8>>, may_lack: &[&str]) {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/foxglove-layout.json");
+    let layout: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let mut named = Vec::new();
+    for (panel, config) in layout["configById"].as_object().unwrap() {
+        if let Some(topics) = config["topics"].as_object() {
+            named.extend(topics.keys().map(|t| (panel, t.clone(), None)));
+        }
+        if let Some(t) = config["topicToRender"].as_str() {
+            named.push((panel, t.to_string(), None));
+        }
+        for p in config["paths"].as_array().into_iter().flatten() {
+            let value = p["value"].as_str().unwrap();
+            let (topic, field) = value.split_once('.').unwrap();
+            named.push((panel, topic.to_string(), Some(field.to_string())));
+        }
+    }
+    let absent_robot = |t: &str| {
+        t.strip_prefix("/robot_")
+            .and_then(|r| r.split('/').next())
+            .and_then(|id| id.parse::<u32>().ok())
+            .is_some_and(|id| id >= 3)
+    };
+    let mut checked = 0;
+    for (panel, topic, field) in named {
+        if absent_robot(&topic)
+            || (may_lack.contains(&topic.as_str()) && !schemas.contains_key(&topic))
+        {
+            continue;
+        }
+        let schema = schemas
+            .get(&topic)
+            .unwrap_or_else(|| panic!("layout panel {panel} shows {topic}: not recorded"));
+        if let Some(field) = field {
+            let name = field.as_bytes();
+            assert!(
+                schema.windows(name.len()).any(|w| w == name),
+                "layout panel {panel} plots {topic}.{field}: not in its schema"
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked >= 8, "{checked} layout references checked");
+}
+
+/// Every channel of the MCAP recording at `path`: its topic, its schema's name and
+/// data, and how many messages it has.
+pub fn channels(path: &Path) -> std::collections::BTreeMap<String, (String, Vec<u8>, u64)> {
+    let bytes = std::fs::read(path).unwrap();
+    let mut out = std::collections::BTreeMap::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let (name, data) = m
+            .channel
+            .schema
+            .as_ref()
+            .map(|s| (s.name.clone(), s.data.to_vec()))
+            .unwrap_or_default();
+        out.entry(m.channel.topic.clone())
+            .or_insert((name, data, 0))
+            .2 += 1;
+    }
+    out
 }

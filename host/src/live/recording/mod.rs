@@ -2,7 +2,9 @@
 //! the Foxglove WebSocket protocol, from the same log calls (the same channels as a
 //! simulation's recording where the station knows them): the radio bytes both ways, the
 //! base station's events, each robot's pose as its telemetry reports it and its link's
-//! health once a second. `sim --realtime
+//! health once a second, and the scene a simulation's recording has (`/map`, `/route`,
+//! `/tf`, `/robots` with the slots, `/robot_N/state`, `/formation`, `/tracks`), so one
+//! Foxglove layout serves both; a metadata record opens the file. `sim --realtime
 //! --live` serves the same. Timestamps: the caller's clock (the wall clock in `run`, the
 //! simulated one in `sim`).
 
@@ -16,12 +18,18 @@ use std::sync::Arc;
 use std::time::SystemTime;
 
 use anyhow::Context as _;
+use base_station::formation::Target;
 use base_station::recording::{
-    events_channel, link_health, log_event, log_radio, pose, radio_channel, stamp, LinkHealth,
-    FRAME,
+    color, events_channel, link_health, log_event, log_radio, map_entity, point, pose,
+    radio_channel, robot_entity, slot_marker, stamp, tracks_entity, turned, FormationShape,
+    LinkHealth, RobotState, FRAME, TF_TOPIC, TRACKS_TOPIC,
 };
+use base_station::scenario::Scenario;
 use base_station::station::BaseStation;
-use foxglove::messages::{Log, PoseInFrame};
+use foxglove::messages::{
+    line_primitive, FrameTransform, FrameTransforms, LinePrimitive, Log, PoseInFrame, SceneEntity,
+    SceneUpdate, Vector3,
+};
 use foxglove::{
     Channel, Context, McapWriter, McapWriterHandle, RawChannel, WebSocketServer,
     WebSocketServerHandle,
@@ -39,7 +47,30 @@ pub struct LiveRecording {
     /// The station's clock at the last link health logged, ms.
     links_logged_ms: Option<u32>,
     events_logged: usize,
+    scene: Scene,
 }
+
+/// The scene channels a simulation's recording has too, fed from what the station knows.
+struct Scene {
+    robots: Channel<SceneUpdate>,
+    frames: Channel<FrameTransforms>,
+    states: BTreeMap<u16, Channel<RobotState>>,
+    routes: Channel<SceneUpdate>,
+    shapes: Channel<FormationShape>,
+    tracks: Channel<SceneUpdate>,
+    leader: u16,
+    footprint: f64,
+    track_width: f64,
+    bodies_drawn: bool,
+    /// The route last logged (its length and last point: enough to see it change).
+    route: Option<(usize, [f64; 2])>,
+    shape: &'static str,
+    /// The station's clock at the last scene update, ms.
+    scene_ms: Option<u32>,
+}
+
+/// Scene updates at most this often, ms (the station steps at 10 Hz).
+const SCENE_EVERY_MS: u32 = 100;
 
 /// Now, ns since the Unix epoch.
 pub fn now_ns() -> u64 {
@@ -53,7 +84,7 @@ impl LiveRecording {
     /// `origins` and the default ones may open it), a pose channel per robot of `robots`;
     /// the file opens with a metadata record of `scenario`'s run.
     pub fn create(
-        scenario: &str,
+        scenario: &Scenario,
         mcap: Option<&Path>,
         live: Option<SocketAddr>,
         origins: &[String],
@@ -72,7 +103,7 @@ impl LiveRecording {
                     .create(BufWriter::new(file))
                     .with_context(|| format!("cannot write {}", partial.display()))?;
                 let metadata = base_station::recording::run_metadata(
-                    scenario,
+                    &scenario.name,
                     None,
                     "robots",
                     std::time::SystemTime::now(),
@@ -103,6 +134,41 @@ impl LiveRecording {
         let radio = radio_channel(&ctx).map_err(anyhow::Error::msg)?;
         let events = events_channel(&ctx);
         let robots: Vec<u16> = robots.into_iter().collect();
+        let map = ctx.channel_builder("/map").build::<SceneUpdate>();
+        map.log_with_time(
+            &SceneUpdate {
+                entities: vec![map_entity(scenario.build_site().obstacles())],
+                ..Default::default()
+            },
+            now_ns(),
+        );
+        let scene = Scene {
+            robots: ctx.channel_builder("/robots").build(),
+            frames: ctx.channel_builder(TF_TOPIC).build(),
+            states: robots
+                .iter()
+                .map(|id| {
+                    (
+                        *id,
+                        ctx.channel_builder(format!("/robot_{id}/state")).build(),
+                    )
+                })
+                .collect(),
+            routes: ctx.channel_builder("/route").build(),
+            shapes: ctx.channel_builder("/formation").build(),
+            tracks: ctx.channel_builder(TRACKS_TOPIC).build(),
+            leader: scenario
+                .robots
+                .iter()
+                .find(|r| r.role == base_station::scenario::Role::Leader)
+                .map_or(0, |r| r.id),
+            footprint: scenario.robot.footprint_radius,
+            track_width: scenario.robot.track_width,
+            bodies_drawn: false,
+            route: None,
+            shape: "",
+            scene_ms: None,
+        };
         let links = robots
             .iter()
             .map(|id| {
@@ -131,6 +197,7 @@ impl LiveRecording {
             links,
             links_logged_ms: None,
             events_logged: 0,
+            scene,
         })
     }
 
@@ -183,6 +250,18 @@ impl LiveRecording {
         }
     }
 
+    /// The scene at the station's clock `now_ms`, at `t` (every [`SCENE_EVERY_MS`]).
+    pub fn scene(&mut self, station: &BaseStation, now_ms: u32, t: u64) {
+        let due = self
+            .scene
+            .scene_ms
+            .is_none_or(|last| now_ms.wrapping_sub(last) >= SCENE_EVERY_MS);
+        if due {
+            self.scene.scene_ms = Some(now_ms);
+            self.scene.update(station, now_ms, t);
+        }
+    }
+
     pub fn close(self) -> anyhow::Result<()> {
         if let Some(server) = self.server {
             server.stop().wait_blocking();
@@ -192,5 +271,144 @@ impl LiveRecording {
         };
         writer.close().context("cannot finish the recording")?;
         std::fs::rename(&partial, &path).with_context(|| format!("cannot write {}", path.display()))
+    }
+}
+
+impl Scene {
+    /// Each robot's frame and state from its telemetry, the robots' bodies (once) and
+    /// the slots, the route when it changed, the shape when it changed, the tracks.
+    fn update(&mut self, station: &BaseStation, now_ms: u32, t: u64) {
+        let mut transforms = Vec::new();
+        for (id, status) in station.robots() {
+            let Some(telemetry) = status.telemetry else {
+                continue;
+            };
+            let (x, y, heading) = telemetry.pose.to_si();
+            transforms.push(FrameTransform {
+                timestamp: stamp(t),
+                parent_frame_id: FRAME.into(),
+                child_frame_id: format!("robot_{id}"),
+                translation: Some(Vector3 {
+                    x: x as f64,
+                    y: y as f64,
+                    z: 0.0,
+                }),
+                rotation: Some(turned(heading as f64)),
+            });
+            let [l, r] = telemetry.wheel_mm_s.map(|w| w as f64 / 1000.0);
+            if let Some(channel) = self.states.get(id) {
+                let follower = *id != self.leader;
+                channel.log_with_time(
+                    &RobotState {
+                        v: 0.5 * (l + r),
+                        omega: (r - l) / self.track_width,
+                        tracking_error: if follower {
+                            telemetry.tracking_error_mm as f64 / 1000.0
+                        } else {
+                            -1.0
+                        },
+                        blend: station.formation().blend(),
+                    },
+                    t,
+                );
+            }
+        }
+        self.frames
+            .log_with_time(&FrameTransforms { transforms }, t);
+        let mut entities = Vec::new();
+        if !self.bodies_drawn {
+            self.bodies_drawn = true;
+            entities.extend(
+                self.states
+                    .keys()
+                    .map(|id| robot_entity(*id, *id == self.leader, self.footprint)),
+            );
+        }
+        let mut slots = SceneEntity {
+            timestamp: stamp(t),
+            frame_id: FRAME.into(),
+            id: "slots".into(),
+            ..Default::default()
+        };
+        if let Some(l) = station.leader_estimate(now_ms) {
+            for p in station.formation().slot_points(l.pose) {
+                slots.spheres.push(slot_marker((p.x, p.y)));
+            }
+        }
+        entities.push(slots);
+        self.robots.log_with_time(
+            &SceneUpdate {
+                entities,
+                ..Default::default()
+            },
+            t,
+        );
+        self.note_route(station, t);
+        self.note_shape(station, t);
+        let tracks: Vec<_> = station.tracks(now_ms).collect();
+        if !tracks.is_empty() {
+            self.tracks.log_with_time(
+                &SceneUpdate {
+                    entities: vec![tracks_entity(t, &tracks)],
+                    ..Default::default()
+                },
+                t,
+            );
+        }
+    }
+
+    /// The route, when it changed: a blue line strip, as in a simulation's recording.
+    fn note_route(&mut self, station: &BaseStation, t: u64) {
+        let Some(route) = station.route() else {
+            return;
+        };
+        let key = route
+            .points
+            .last()
+            .map(|p| (route.points.len(), [p.x, p.y]));
+        if key == self.route {
+            return;
+        }
+        self.route = key;
+        let mut e = SceneEntity {
+            timestamp: stamp(t),
+            frame_id: FRAME.into(),
+            id: "route".into(),
+            ..Default::default()
+        };
+        e.lines.push(LinePrimitive {
+            r#type: line_primitive::Type::LineStrip as i32,
+            thickness: 0.05,
+            points: route.points.iter().map(|p| point(p.x, p.y)).collect(),
+            color: color(0.1, 0.5, 0.95),
+            ..Default::default()
+        });
+        self.routes.log_with_time(
+            &SceneUpdate {
+                entities: vec![e],
+                ..Default::default()
+            },
+            t,
+        );
+    }
+
+    /// The formation's shape, when it changed (`wide`, `to_line`, `line`, `to_wide`).
+    fn note_shape(&mut self, station: &BaseStation, t: u64) {
+        let blend = station.formation().blend();
+        let shape = match (station.formation().target(), blend) {
+            (Target::Line, b) if b >= 1.0 => "line",
+            (Target::Line, _) => "to_line",
+            (Target::Wide, b) if b <= 0.0 => "wide",
+            (Target::Wide, _) => "to_wide",
+        };
+        if shape != self.shape {
+            self.shape = shape;
+            self.shapes.log_with_time(
+                &FormationShape {
+                    shape: shape.into(),
+                },
+                t,
+            );
+        }
     }
 }
