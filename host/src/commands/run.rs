@@ -112,7 +112,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
     match &localization {
         Some(_) => station.watch_fixes(0),
         None => tracing::warn!(
-            "no localization source (--fix-feed, --nmea): the robots drive on odometry alone"
+            "no localization source (--fix-feed, --nmea): the station forwards no fixes, so robots without fixes of their own (a rehearsal's simulated robots have them) drive on odometry alone"
         ),
     }
 

@@ -92,6 +92,12 @@ impl Diagnosis {
     fn rejects(&mut self, station: &BaseStation, now_ms: u32) {
         let now = station.link().stats().rejects;
         for reason in Reject::ALL {
+            // Robots talk before their handshake: a session unknown in the first seconds
+            // is the normal start, not a fault.
+            if reason == Reject::UnknownSession && now_ms < QUIET_AFTER_MS {
+                self.seen.0[reason as usize] = now.get(reason);
+                continue;
+            }
             let new = now.get(reason).saturating_sub(self.seen.get(reason));
             let due = self
                 .said
