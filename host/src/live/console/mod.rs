@@ -136,6 +136,13 @@ impl Console {
             console.shared.guard.code(),
             console.urls.join(" or ")
         );
+        // A tablet at the kerb scans it: the address with its pairing code.
+        let on_lan = !addr.ip().is_loopback();
+        if on_lan && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+            if let Some(code) = qr_text(&console.url) {
+                eprintln!("{code}");
+            }
+        }
         Ok(Some(console))
     }
 
@@ -176,6 +183,19 @@ fn parse_command(body: &str) -> Option<OperatorCommand> {
         "resume" => Some(OperatorCommand::Resume),
         _ => None,
     }
+}
+
+/// `text` as a QR code in terminal characters (two rows a character), light on dark
+/// inverted so that phones read it on a dark terminal; `None` if it does not fit one.
+pub fn qr_text(text: &str) -> Option<String> {
+    let code = qrcode::QrCode::new(text.as_bytes()).ok()?;
+    Some(
+        code.render::<qrcode::render::unicode::Dense1x2>()
+            .dark_color(qrcode::render::unicode::Dense1x2::Light)
+            .light_color(qrcode::render::unicode::Dense1x2::Dark)
+            .quiet_zone(true)
+            .build(),
+    )
 }
 
 /// The site's static picture for the page: the map's obstacles and the route's goal.
@@ -292,5 +312,15 @@ mod tests {
         }
         assert!(guard::same(b"abc", b"abc") && !guard::same(b"abc", b"abd"));
         assert!(!guard::same(b"abc", b"ab"));
+    }
+
+    #[test]
+    fn the_address_fits_a_qr_code() {
+        let url = "http://192.168.100.200:45123/#pair=abcde-fghij";
+        let text = qr_text(url).expect("a QR code");
+        let rows = text.lines().count();
+        // Version 3 or so: 29 modules and a quiet zone, two rows a line.
+        assert!((15..=30).contains(&rows), "{rows} rows");
+        assert!(text.contains('█') || text.contains('▀') || text.contains('▄'));
     }
 }
