@@ -297,6 +297,33 @@ fn run_names_its_transports_takes_host_names_and_checks_nmea_ids() {
     );
 }
 
+/// `robots` with no station: within seconds it says so, and where `run` should point.
+#[test]
+fn robots_without_a_station_say_so() {
+    let out = common::basestation()
+        .args([
+            "robots",
+            "paper-passage",
+            "--udp",
+            "127.0.0.1:0",
+            "--duration",
+            "6",
+        ])
+        .env("SWEEPER_FLEET_KEY", "33".repeat(32))
+        .env_remove("SWEEPER_KEY_FILE")
+        .arg("--report")
+        .arg(std::env::temp_dir().join(format!("robots-alone-{}.json", std::process::id())))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("no station heard for 5 s: point `basestation run --udp`"),
+        "{err}"
+    );
+    assert!(err.contains("udp 127.0.0.1:"), "{err}");
+}
+
 #[test]
 fn run_over_udp_challenges_every_robot() {
     use protocol::{frame, FrameDecoder, Message};

@@ -496,7 +496,11 @@ fn a_station_with_another_key_says_so_and_exits_5() {
         ],
     );
     let err = run.finish_with(Duration::from_secs(30), 5);
-    robots.finish(Duration::from_secs(30));
+    let robots_err = robots.finish(Duration::from_secs(30));
+    assert!(
+        robots_err.contains("frames rejected by the robots (bad_tag): frames fail authentication"),
+        "robots did not say: {robots_err}"
+    );
     for said in [
         "robot 0 not heard",
         "robot 2 not heard",

@@ -31,7 +31,8 @@ pub struct RobotsArgs {
     /// is printed for `run --port`.
     #[arg(long)]
     pub pty: bool,
-    /// Write the run's report here when it ends (the schema of `sim`'s report).
+    /// Write the run's report here when it ends (the schema of `sim`'s report); none
+    /// without it.
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
     /// End after this many seconds [default: the scenario's duration].
@@ -71,6 +72,19 @@ enum Air {
 }
 
 impl Air {
+    /// Where `run` reaches these robots.
+    fn address(&self) -> String {
+        match self {
+            Air::Udp { socket, .. } => socket
+                .local_addr()
+                .map_or("this UDP socket".into(), |a| format!("udp {a}")),
+            Air::Pty { _slave, .. } => nix::unistd::ttyname(_slave.as_fd())
+                .map_or("this pseudo-terminal".into(), |p| {
+                    format!("pty {}", p.display())
+                }),
+        }
+    }
+
     fn open_udp(addr: SocketAddr) -> anyhow::Result<Self> {
         let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
         socket.set_nonblocking(true)?;
@@ -159,7 +173,6 @@ impl Air {
 pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     let scenario = super::load_scenario(&args.scenario)?;
     let key = crate::key::require_key(&args.key)?;
-    let name = scenario.name.clone();
     let end_s = args.duration.unwrap_or(scenario.sim.duration_s);
     let step_us = scenario.sim.physics_step_ms as u64 * 1000;
     let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
@@ -183,6 +196,7 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     };
     use std::io::Write;
     std::io::stdout().flush()?;
+    let listening = air.address();
 
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
@@ -192,6 +206,8 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     let wall = Instant::now();
     let epoch_unix_ms = super::unix_ms()?;
     let mut heard = Vec::new();
+    let mut diagnosis = crate::live::diagnosis::RobotsDiagnosis::default();
+    let mut looked_s = 0;
     while !stop.load(Ordering::SeqCst) && (world.t_us as f64) < end_s * 1e6 {
         // The station settles as long after its own arrival, which may come a little
         // later: give it time to finish before the robots go away.
@@ -202,6 +218,7 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
         }
         heard.clear();
         air.poll(&mut heard)?;
+        diagnosis.heard(heard.len());
         world.base_transmit(&heard);
         world.step(step_us).context("a robot's controller failed")?;
         air.send(&world.take_base_inbox())?;
@@ -214,28 +231,39 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
         if let Some(scans) = &mut scans {
             scans.publish(&scan, epoch_unix_ms + world.t_us / 1000);
         }
+        // Once a second: a station not heard, frames the robots refuse.
+        if world.t_us / 1_000_000 != looked_s {
+            looked_s = world.t_us / 1_000_000;
+            let mut rejects = protocol::RejectCounts::default();
+            for r in &world.robots {
+                rejects.merge(&r.brain.rejects());
+            }
+            diagnosis.look(rejects, (world.t_us / 1000) as u32, &listening);
+        }
         let ahead = Duration::from_micros(world.t_us).saturating_sub(wall.elapsed());
         std::thread::sleep(ahead);
     }
     let report = hil_sim::run::report_of(&world, wall.elapsed().as_secs_f64());
-    let path = args
-        .report
-        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.robots.json")));
-    super::create_parent(&path)?;
-    super::write_report(&report, &path)?;
+    // Written where asked only (until 2026-12-03 to out/SCENARIO.robots.json unasked).
+    if let Some(path) = &args.report {
+        super::create_parent(path)?;
+        super::write_report(&report, path)?;
+    }
     if let Some(path) = &args.robots.trace {
         super::create_parent(path)?;
         super::write_trace(&world, path)?;
     }
     eprintln!(
-        "robots: {:.1} s, goal {}, {} contacts; report {}",
+        "robots: {:.1} s, goal {}, {} contacts{}",
         world.t_us as f64 / 1e6,
         match report.time_to_goal_s {
             Some(t) => format!("reached at {t:.1} s"),
             None => "not reached".into(),
         },
         report.collisions,
-        path.display()
+        args.report
+            .as_ref()
+            .map_or(String::new(), |p| format!("; report {}", p.display()))
     );
     Ok(())
 }

@@ -25,6 +25,77 @@ pub struct Diagnosis {
     said: BTreeMap<Reject, u32>,
 }
 
+/// Warns of the frames rejected (`now`, counted since the start) since the last look, per
+/// reason with its likely cause, at most every [`REPEAT_EVERY_MS`] per reason.
+fn say_rejects(
+    seen: &mut RejectCounts,
+    said: &mut BTreeMap<Reject, u32>,
+    now: RejectCounts,
+    now_ms: u32,
+    what: &str,
+) {
+    for reason in Reject::ALL {
+        // Robots talk before their handshake: a session unknown in the first seconds is
+        // the normal start, not a fault.
+        if reason == Reject::UnknownSession && now_ms < QUIET_AFTER_MS {
+            seen.0[reason as usize] = now.get(reason);
+            continue;
+        }
+        let new = now.get(reason).saturating_sub(seen.get(reason));
+        let due = said
+            .get(&reason)
+            .is_none_or(|t| now_ms.saturating_sub(*t) >= REPEAT_EVERY_MS);
+        if new > 0 && due {
+            tracing::warn!(
+                reason = reason.name(),
+                frames = new,
+                "{new} {what} ({}): {}",
+                reason.name(),
+                cause(reason)
+            );
+            said.insert(reason, now_ms);
+            seen.0[reason as usize] = now.get(reason);
+        }
+    }
+}
+
+/// What `robots` (the simulated robots behind a real transport) says of its link: no
+/// station heard after [`QUIET_AFTER_MS`] (once), and the frames its robots reject, with
+/// the likely cause.
+#[derive(Debug, Default)]
+pub struct RobotsDiagnosis {
+    heard_bytes: usize,
+    said_silent: bool,
+    seen: RejectCounts,
+    said: BTreeMap<Reject, u32>,
+}
+
+impl RobotsDiagnosis {
+    /// Bytes from the air (the station's, if it is there).
+    pub fn heard(&mut self, bytes: usize) {
+        self.heard_bytes += bytes;
+    }
+
+    /// At `now_ms` of the run, the robots' rejects so far; `at`: where they listen.
+    pub fn look(&mut self, rejects: RejectCounts, now_ms: u32, at: &str) {
+        if now_ms >= QUIET_AFTER_MS && self.heard_bytes == 0 && !self.said_silent {
+            self.said_silent = true;
+            tracing::warn!(
+                "no station heard for {} s: point `basestation run --udp` (or `--port`) at {at}, \
+                 with the same fleet key",
+                now_ms / 1000
+            );
+        }
+        say_rejects(
+            &mut self.seen,
+            &mut self.said,
+            rejects,
+            now_ms,
+            "frames rejected by the robots",
+        );
+    }
+}
+
 /// The likely cause of frames rejected for `reason`, and what to check.
 pub fn cause(reason: Reject) -> &'static str {
     match reason {
@@ -91,29 +162,12 @@ impl Diagnosis {
 
     fn rejects(&mut self, station: &BaseStation, now_ms: u32) {
         let now = station.link().stats().rejects;
-        for reason in Reject::ALL {
-            // Robots talk before their handshake: a session unknown in the first seconds
-            // is the normal start, not a fault.
-            if reason == Reject::UnknownSession && now_ms < QUIET_AFTER_MS {
-                self.seen.0[reason as usize] = now.get(reason);
-                continue;
-            }
-            let new = now.get(reason).saturating_sub(self.seen.get(reason));
-            let due = self
-                .said
-                .get(&reason)
-                .is_none_or(|t| now_ms.saturating_sub(*t) >= REPEAT_EVERY_MS);
-            if new > 0 && due {
-                tracing::warn!(
-                    reason = reason.name(),
-                    frames = new,
-                    "{new} frames rejected ({}): {}",
-                    reason.name(),
-                    cause(reason)
-                );
-                self.said.insert(reason, now_ms);
-                self.seen.0[reason as usize] = now.get(reason);
-            }
-        }
+        say_rejects(
+            &mut self.seen,
+            &mut self.said,
+            now,
+            now_ms,
+            "frames rejected",
+        );
     }
 }
