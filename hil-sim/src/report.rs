@@ -91,6 +91,11 @@ pub struct Report {
     pub firmware: String,
     pub sim_time_s: f64,
     pub wall_time_s: f64,
+    /// A real-time run's start on the Unix clock, ms (`robots`: the same clock as `run`'s
+    /// summary, to line the two up); absent from a simulation, whose report depends on
+    /// nothing but its scenario and seed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub started_unix_ms: Option<u64>,
     pub goal_reached: bool,
     pub time_to_goal_s: Option<f64>,
     pub collisions: u32,
@@ -417,6 +422,7 @@ pub fn build_report(
         firmware: facts.firmware.to_string(),
         sim_time_s: facts.sim_time_s,
         wall_time_s: facts.wall_time_s,
+        started_unix_ms: None,
         goal_reached: facts.time_to_goal_s.is_some(),
         time_to_goal_s: facts.time_to_goal_s,
         collisions: rec.contacts + rec.movers.contacts_moving + rec.movers.contacts_standing,

@@ -68,6 +68,17 @@ fn paper_passage_over(transport: &str) {
     assert_eq!(r["goal_reached"], true, "{r}");
     assert_eq!(r["collisions"], 0);
     assert_eq!(json(&run_report)["goal_reached"], true);
+    // One clock for both processes' reports: the robots started first, within seconds.
+    let (robots_t0, run_t0) = (
+        r["started_unix_ms"].as_u64().expect("robots' start"),
+        json(&run_report)["started_unix_ms"]
+            .as_u64()
+            .expect("run's start"),
+    );
+    assert!(
+        robots_t0 <= run_t0 && run_t0 - robots_t0 < 30_000,
+        "{robots_t0} {run_t0}"
+    );
     for ((id, real), (_, simulated)) in follower_errors(&r).into_iter().zip(follower_errors(&sim)) {
         println!("{transport}: follower {id}: max tracking error after join {real:.3} m (sim {simulated:.3} m)");
         assert!(

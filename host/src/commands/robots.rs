@@ -243,7 +243,8 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
         let ahead = Duration::from_micros(world.t_us).saturating_sub(wall.elapsed());
         std::thread::sleep(ahead);
     }
-    let report = hil_sim::run::report_of(&world, wall.elapsed().as_secs_f64());
+    let mut report = hil_sim::run::report_of(&world, wall.elapsed().as_secs_f64());
+    report.started_unix_ms = Some(epoch_unix_ms);
     // Written where asked only (until 2026-12-03 to out/SCENARIO.robots.json unasked).
     if let Some(path) = &args.report {
         super::create_parent(path)?;

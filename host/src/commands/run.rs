@@ -246,6 +246,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
         scans.as_ref().map(|s| s.counts()),
     );
     summary["loop"] = serde_json::to_value(timing.report())?;
+    // The station's clock zero on the Unix clock: `robots`' report has its own, so the
+    // two processes' times line up.
+    summary["started_unix_ms"] = json!(start_unix_ms);
     if let Some(console) = &console {
         summary["console"] = json!({ "alive": console.alive(), "urls": console.urls });
     }
