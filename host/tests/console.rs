@@ -142,10 +142,16 @@ fn speeds(path: &Path) -> Vec<(f64, u64, f64)> {
 /// A `sim --realtime --console` run of the 24 s passage in `dir`: the process, the
 /// console's URL (with its pairing code), the report's and the trace's paths.
 fn start_sim(dir: &Path) -> (Killed, String, PathBuf, PathBuf) {
+    start_sim_with(dir, &[])
+}
+
+/// [`start_sim`] with more arguments (faults).
+fn start_sim_with(dir: &Path, extra: &[&str]) -> (Killed, String, PathBuf, PathBuf) {
     let (report, trace) = (dir.join("report.json"), dir.join("trace.csv"));
     let mut sim = common::basestation()
         .arg("sim")
         .arg(scenario(dir))
+        .args(extra)
         .args(["--realtime", "--console", "127.0.0.1:0", "--report"])
         .arg(&report)
         .arg("--trace")
@@ -620,4 +626,43 @@ fn the_page_says_what_is_wrong_and_what_is_stale() {
         "station gone"
     );
     page.screenshot(&dir.join("console-stale.png"));
+}
+
+/// A radio blackout (every robot's frames lost for 4 s): the table shows each robot's
+/// link quiet, then lost, in colour, and the banner says the leader is not heard and
+/// the fleet stopped; when the radio is back, the banner goes. Issue 30.
+#[test]
+fn a_radio_blackout_shows_on_the_page() {
+    let dir = common::scratch("console-blackout");
+    let Some((_browser, mut page)) = open_browser(&dir) else {
+        return;
+    };
+    let fault = r#"{ at_s = 6, kind = "silent_uplink", duration_s = 4 }"#;
+    let (_sim, url, _, _) = start_sim_with(&dir, &["--fault", fault]);
+    page.call("Page.navigate", json!({ "url": url }));
+    // Linked at about 1 s of the page's life; the blackout from 6 s to 10 s of the run's.
+    std::thread::sleep(Duration::from_millis(8500));
+    let links = page.eval(
+        "Array.from(document.querySelectorAll('#robots tr td:nth-child(3)')).map((td) => td.className).join(',')",
+    );
+    let banner = page.eval("document.getElementById('banner').className");
+    let text = page.eval("document.getElementById('banner').textContent");
+    page.screenshot(&dir.join("console-blackout.png"));
+    assert_eq!(links, "lost,lost,lost", "{text}");
+    assert_eq!(banner, "halt", "{text}");
+    assert!(
+        text.as_str()
+            .unwrap()
+            .contains("No telemetry from the leader"),
+        "{text}"
+    );
+    std::thread::sleep(Duration::from_secs(5));
+    let links = page.eval(
+        "Array.from(document.querySelectorAll('#robots tr td:nth-child(3)')).map((td) => td.className).join(',')",
+    );
+    assert_eq!(links, "ok,ok,ok", "the radio is back");
+    assert_eq!(
+        page.eval("document.getElementById('banner').className"),
+        "hidden"
+    );
 }
