@@ -524,3 +524,44 @@ fn a_station_with_another_key_says_so_and_exits_5() {
     // No colour codes in a pipe.
     assert!(!err.contains('\u{1b}'), "{err}");
 }
+
+/// Ctrl-C (SIGINT) on a linked `run`: the station stops the fleet, writes its report and
+/// closes a whole recording, and exits 4 (stopped by the operator). Issue 30.
+#[test]
+fn an_interrupted_run_writes_its_report_and_recording_and_exits_4() {
+    let site = Site::new("interrupted");
+    let scenario = site.path("short-passage.toml");
+    let scenario = scenario.to_str().unwrap();
+    let (mut robots, _, _) = robots_over_udp(&site, scenario, &[]);
+    let at = robots.address();
+    let (report, recording) = (site.path("run.json"), site.path("run.mcap"));
+    let run = Process::start(
+        &site,
+        &[
+            "run",
+            scenario,
+            "--udp",
+            &at,
+            "--bind",
+            "127.0.0.1:0",
+            "--report",
+            report.to_str().unwrap(),
+            "--mcap",
+            recording.to_str().unwrap(),
+        ],
+    );
+    std::thread::sleep(Duration::from_secs(5));
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &run.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    run.finish_with(Duration::from_secs(20), 4);
+    drop(robots);
+    let r = json(&report);
+    assert_eq!(r["goal_reached"], false);
+    assert!(r["link"]["accepted"].as_u64().unwrap() > 50, "{r}");
+    let channels = common::channels(&recording);
+    assert!(channels["/tf"].2 > 20, "{:?}", channels.get("/tf"));
+    assert!(!site.path("run.mcap.partial").exists());
+}
