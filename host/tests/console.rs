@@ -666,3 +666,34 @@ fn a_radio_blackout_shows_on_the_page() {
         "hidden"
     );
 }
+
+/// A stuck wheel halts the fleet: the banner says which robot, what happened and what to
+/// do, in words (not an event identifier). Issue 30.
+#[test]
+fn a_halting_fault_is_a_banner_in_words() {
+    let dir = common::scratch("console-fault");
+    let Some((_browser, mut page)) = open_browser(&dir) else {
+        return;
+    };
+    let fault = r#"{ at_s = 6, kind = "stuck_wheel", robot = 1 }"#;
+    let (_sim, url, _, _) = start_sim_with(&dir, &["--fault", fault]);
+    page.call("Page.navigate", json!({ "url": url }));
+    std::thread::sleep(Duration::from_secs(11));
+    let banner = page.eval("document.getElementById('banner').className");
+    let text = page.eval("document.getElementById('banner').textContent");
+    page.screenshot(&dir.join("console-fault.png"));
+    assert_eq!(banner, "halt", "{text}");
+    let text = text.as_str().unwrap();
+    assert!(text.contains("robot 1: left wheel stalled"), "{text}");
+    assert!(text.contains("Check robot 1"), "{text}");
+    assert_eq!(
+        page.eval("document.getElementById('status').textContent"),
+        "HALTED",
+        "the header says the fleet is halted, not its shape"
+    );
+    let events = page.eval("document.getElementById('events').textContent");
+    assert!(
+        !events.as_str().unwrap().contains("robot_fault:"),
+        "events in words: {events}"
+    );
+}
