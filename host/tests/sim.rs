@@ -206,7 +206,12 @@ fn sim_takes_faults_on_the_command_line() {
 #[test]
 fn street_crossing_reports_and_records_the_movers() {
     let dir = common::scratch("e2e-sim-movers");
-    let (out, report) = common::sim_into(&dir, "street-crossing", &[]);
+    let layout = dir.join("layout.json");
+    let (out, report) = common::sim_into(
+        &dir,
+        "street-crossing",
+        &["--layout", layout.to_str().unwrap()],
+    );
     // The goal reached: exit code 0.
     assert_eq!(out.status.code(), Some(0));
     let r: serde_json::Value =
@@ -245,6 +250,28 @@ fn street_crossing_reports_and_records_the_movers() {
     assert!(*tracks > samples / 2, "{tracks} of {samples}");
     // The shipped layout shows them.
     common::assert_layout_fits(&schemas, &[]);
+    // `--layout`: every topic its plots name is a channel of this recording.
+    let layout: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&layout).unwrap()).unwrap();
+    let mut plotted = 0;
+    for panel in layout["configById"].as_object().unwrap().values() {
+        for p in panel["paths"].as_array().into_iter().flatten() {
+            let (topic, field) = p["value"].as_str().unwrap().split_once('.').unwrap();
+            let schema = schemas
+                .get(topic)
+                .unwrap_or_else(|| panic!("{topic} not recorded"));
+            assert!(
+                schema.windows(field.len()).any(|w| w == field.as_bytes()),
+                "{topic}.{field}"
+            );
+            plotted += 1;
+        }
+    }
+    assert_eq!(
+        plotted,
+        2 + 3 * 2,
+        "two followers' errors, three robots' v and omega"
+    );
     // A metadata record says what ran, which build, since when.
     let meta = mcap::read::LinearReader::new(&bytes)
         .unwrap()

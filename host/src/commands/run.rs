@@ -64,6 +64,10 @@ pub struct RunArgs {
     /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<std::path::PathBuf>,
+    /// Write a Foxglove / Lichtblick layout for this fleet here (the shipped one with
+    /// its plots for these robots): open it with the recording.
+    #[arg(long, value_name = "FILE.json")]
+    pub layout: Option<std::path::PathBuf>,
     #[command(flatten)]
     pub serve: super::ServeArgs,
     #[command(flatten)]
@@ -72,6 +76,10 @@ pub struct RunArgs {
 
 pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
     let scenario = super::load_scenario(&args.scenario)?;
+    if let Some(path) = &args.layout {
+        super::create_parent(path)?;
+        crate::live::recording::layout::write(&scenario, path)?;
+    }
     let key = crate::key::require_key(&args.key)?;
     let transport: Box<dyn Transport> = match (&args.port, args.udp) {
         (Some(port), _) => {

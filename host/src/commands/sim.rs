@@ -29,6 +29,10 @@ pub struct SimArgs {
     /// out/SCENARIO.mcap] (docs/sim.md#the-recording).
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<PathBuf>,
+    /// Write a Foxglove / Lichtblick layout for this fleet here (the shipped one with
+    /// its plots for these robots): open it with the recording.
+    #[arg(long, value_name = "FILE.json")]
+    pub layout: Option<std::path::PathBuf>,
     /// Run no faster than the wall clock.
     #[arg(long)]
     pub realtime: bool,
@@ -70,6 +74,10 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
         anyhow::bail!("{}", lines.join("\n"));
     }
     let name = scenario.name.clone();
+    if let Some(path) = &args.layout {
+        super::create_parent(path)?;
+        crate::live::recording::layout::write(&scenario, path)?;
+    }
     let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
     options.firmware = args.robots.firmware.into();
     options.realtime = args.realtime;

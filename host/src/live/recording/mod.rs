@@ -9,6 +9,7 @@
 //! simulated one in `sim`).
 
 mod gate;
+pub mod layout;
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
