@@ -184,6 +184,12 @@ fn sim_takes_faults_on_the_command_line() {
     // The progress bar draws on a terminal only: nothing of it in a pipe.
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains('\r') && !err.contains("simulating"), "{err}");
+    // A halt is an ERROR, at the default level (issue 30: it was INFO).
+    assert!(
+        err.lines().any(|l| l.contains("ERROR")
+            && l.contains("no fresh telemetry from the leader: fleet stops")),
+        "{err}"
+    );
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r["goal_reached"], false);
