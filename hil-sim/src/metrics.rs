@@ -430,12 +430,7 @@ impl Recorder {
                 }
             })
             .collect();
-        let shape = match (view.target(), blend) {
-            (Target::Line, b) if b >= 1.0 => "line",
-            (Target::Line, _) => "to_line",
-            (Target::Wide, b) if b <= 0.0 => "wide",
-            (Target::Wide, _) => "to_wide",
-        };
+        let shape = view.target().shape_name(blend);
         self.samples.push(Sample {
             t: t_us as f64 / 1e6,
             robots,

@@ -13,8 +13,8 @@ use std::path::Path;
 use std::sync::{mpsc, Arc};
 
 use foxglove::messages::{
-    line_primitive, CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms,
-    LinePrimitive, Log, PoseInFrame, SceneEntity, SceneUpdate, Vector3,
+    CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms, Log, PoseInFrame,
+    SceneEntity, SceneUpdate, Vector3,
 };
 use foxglove::{Channel, Context, McapWriteOptions, McapWriter, RawChannel};
 
@@ -481,22 +481,9 @@ impl Writer {
 
     /// A route the station planned at `t_us`: a blue line strip.
     fn route(&mut self, t_us: u64, points: &[DVec2]) {
-        let mut e = SceneEntity {
-            timestamp: stamp(t_us * 1000),
-            frame_id: FRAME.into(),
-            id: "route".into(),
-            ..Default::default()
-        };
-        e.lines.push(LinePrimitive {
-            r#type: line_primitive::Type::LineStrip as i32,
-            thickness: 0.05,
-            points: points.iter().map(|p| point(p.x, p.y)).collect(),
-            color: color(0.1, 0.5, 0.95),
-            ..Default::default()
-        });
         self.routes.log_with_time(
             &SceneUpdate {
-                entities: vec![e],
+                entities: vec![route_entity(t_us * 1000, points)],
                 ..Default::default()
             },
             t_us * 1000,

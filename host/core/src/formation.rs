@@ -76,6 +76,17 @@ pub enum Target {
 }
 
 impl Target {
+    /// The shape's name at `blend` on the way to this target: `wide`, `to_line`, `line`
+    /// or `to_wide` (the recordings' `/formation`, the trace's `shape`).
+    pub fn shape_name(self, blend: f64) -> &'static str {
+        match (self, blend) {
+            (Target::Line, b) if b >= 1.0 => "line",
+            (Target::Line, _) => "to_line",
+            (Target::Wide, b) if b <= 0.0 => "wide",
+            (Target::Wide, _) => "to_wide",
+        }
+    }
+
     /// The blend this shape rests at: 0 wide, 1 line.
     pub fn blend(self) -> f64 {
         match self {

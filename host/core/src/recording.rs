@@ -221,6 +221,23 @@ pub fn slot_marker((x, y): (f64, f64)) -> foxglove::messages::SpherePrimitive {
     }
 }
 
+/// A route the station planned, at `t_ns`: a blue line strip (`/route`).
+pub fn route_entity(t_ns: u64, points: &[glam::DVec2]) -> SceneEntity {
+    SceneEntity {
+        timestamp: stamp(t_ns),
+        frame_id: FRAME.into(),
+        id: "route".into(),
+        lines: vec![LinePrimitive {
+            r#type: line_primitive::Type::LineStrip as i32,
+            thickness: 0.05,
+            points: points.iter().map(|p| point(p.x, p.y)).collect(),
+            color: color(0.1, 0.5, 0.95),
+            ..Default::default()
+        }],
+        ..Default::default()
+    }
+}
+
 /// What the station tracks (a scene update per sample while it tracks anything).
 pub const TRACKS_TOPIC: &str = "/tracks";
 

@@ -19,17 +19,15 @@ use std::sync::Arc;
 use std::time::SystemTime;
 
 use anyhow::Context as _;
-use base_station::formation::Target;
 use base_station::recording::{
-    color, events_channel, link_health, log_event, log_radio, map_entity, point, pose,
-    radio_channel, robot_entity, slot_marker, stamp, tracks_entity, turned, FormationShape,
+    events_channel, link_health, log_event, log_radio, map_entity, pose, radio_channel,
+    robot_entity, route_entity, slot_marker, stamp, tracks_entity, turned, FormationShape,
     LinkHealth, RobotState, FRAME, TF_TOPIC, TRACKS_TOPIC,
 };
 use base_station::scenario::Scenario;
 use base_station::station::BaseStation;
 use foxglove::messages::{
-    line_primitive, FrameTransform, FrameTransforms, LinePrimitive, Log, PoseInFrame, SceneEntity,
-    SceneUpdate, Vector3,
+    FrameTransform, FrameTransforms, Log, PoseInFrame, SceneEntity, SceneUpdate, Vector3,
 };
 use foxglove::{
     Channel, Context, McapWriter, McapWriterHandle, RawChannel, WebSocketServer,
@@ -371,22 +369,9 @@ impl Scene {
             return;
         }
         self.route = key;
-        let mut e = SceneEntity {
-            timestamp: stamp(t),
-            frame_id: FRAME.into(),
-            id: "route".into(),
-            ..Default::default()
-        };
-        e.lines.push(LinePrimitive {
-            r#type: line_primitive::Type::LineStrip as i32,
-            thickness: 0.05,
-            points: route.points.iter().map(|p| point(p.x, p.y)).collect(),
-            color: color(0.1, 0.5, 0.95),
-            ..Default::default()
-        });
         self.routes.log_with_time(
             &SceneUpdate {
-                entities: vec![e],
+                entities: vec![route_entity(t, &route.points)],
                 ..Default::default()
             },
             t,
@@ -395,13 +380,8 @@ impl Scene {
 
     /// The formation's shape, when it changed (`wide`, `to_line`, `line`, `to_wide`).
     fn note_shape(&mut self, station: &BaseStation, t: u64) {
-        let blend = station.formation().blend();
-        let shape = match (station.formation().target(), blend) {
-            (Target::Line, b) if b >= 1.0 => "line",
-            (Target::Line, _) => "to_line",
-            (Target::Wide, b) if b <= 0.0 => "wide",
-            (Target::Wide, _) => "to_wide",
-        };
+        let formation = station.formation();
+        let shape = formation.target().shape_name(formation.blend());
         if shape != self.shape {
             self.shape = shape;
             self.shapes.log_with_time(
