@@ -4,7 +4,7 @@
 //! differs, a garbled line, another protocol version…), at most every
 //! [`REPEAT_EVERY_MS`] per reason.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use base_station::station::BaseStation;
 use protocol::{Address, Reject, RejectCounts};
@@ -18,7 +18,7 @@ pub const REPEAT_EVERY_MS: u32 = 5000;
 #[derive(Debug, Default)]
 pub struct Diagnosis {
     /// The robots named as not heard (and not heard since).
-    quiet: BTreeMap<u16, ()>,
+    quiet: BTreeSet<u16>,
     /// The rejects at the last look.
     seen: RejectCounts,
     /// When each reason was last said, ms.
@@ -141,7 +141,7 @@ impl Diagnosis {
                 .peers()
                 .iter()
                 .any(|p| p.address == Address::Robot(*id) && p.last_rx_ms.is_some());
-            match (heard, self.quiet.contains_key(id)) {
+            match (heard, self.quiet.contains(id)) {
                 (false, false) => {
                     tracing::warn!(
                         robot = id,
@@ -149,7 +149,7 @@ impl Diagnosis {
                          and configured as robot {id}?",
                         now_ms / 1000
                     );
-                    self.quiet.insert(*id, ());
+                    self.quiet.insert(*id);
                 }
                 (true, true) => {
                     tracing::warn!(robot = id, "robot {id} heard at last");

@@ -145,11 +145,10 @@ impl Yielding {
         formation: &FormationManager,
         movers: &[TrackView],
     ) -> Yield {
-        let binding = self.in_reach(fleet, formation, movers);
-        let share = if binding.is_empty() {
+        let share = if movers.is_empty() {
             1.0
         } else {
-            self.choose(fleet, formation, &binding)
+            self.choose(fleet, formation, movers)
         };
         self.last = share;
         let held = share < HELD_BELOW;
@@ -166,41 +165,6 @@ impl Yielding {
             began,
             avoid,
         }
-    }
-
-    /// The movers that could bind a choice: those that may come within the most any of
-    /// [`Self::choose`]'s rules asks of any robot over the horizon, however fast they all
-    /// go. The rest cannot change the share (leaving them out is exact, and saves the
-    /// rollouts most of a crowd).
-    fn in_reach(
-        &self,
-        fleet: &Fleet<'_>,
-        formation: &FormationManager,
-        movers: &[TrackView],
-    ) -> Vec<TrackView> {
-        let h = self.spec.horizon_s;
-        let from = fleet.leader.position;
-        let leader = fleet.v.max(fleet.max_speed) * h;
-        let followers = fleet
-            .followers
-            .iter()
-            .flatten()
-            .map(|p| p.distance(from) + fleet.follower_speed * h)
-            .fold(formation.line_reach().max(formation.wide_reach()), f64::max);
-        let robots = leader.max(followers) + fleet.footprint;
-        movers
-            .iter()
-            .filter(|m| {
-                let grown = m.radius.max(MIN_RADIUS_M)
-                    + m.position_sigma
-                    + VELOCITY_GROWTH_MAX_M
-                    + NEAR_SIDE_M;
-                let asked = owed(m, self.spec.personal_space_m).max(CLEAR_M) + RESUME_MARGIN_M;
-                let least = m.position.distance(from) - m.velocity.length() * h - grown - robots;
-                least < asked + 0.1
-            })
-            .copied()
-            .collect()
     }
 
     /// The fastest share that keeps clear of everyone over the near part of the horizon
