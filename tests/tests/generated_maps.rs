@@ -23,25 +23,11 @@ use hil_sim::world::World;
 /// Seeds 1..=6 per suite; `GENERATED_MAP_SEEDS=N` runs N seeds (wider sweeps by hand),
 /// from `GENERATED_MAP_FIRST_SEED` (default 1: maps nobody tuned for start at any other).
 fn seeds() -> std::ops::RangeInclusive<u64> {
-    let var = |name: &str, default: u64| {
-        std::env::var(name)
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(default)
-    };
-    let (first, n) = (
-        var("GENERATED_MAP_FIRST_SEED", 1),
-        var("GENERATED_MAP_SEEDS", 6),
-    );
-    first..=first + n.max(1) - 1
+    common::generate::seeds("GENERATED_MAP_FIRST_SEED", "GENERATED_MAP_SEEDS", 6)
 }
 
 fn save(g: &Generated) -> String {
-    let dir = format!("{}/../target/generated-maps", env!("CARGO_MANIFEST_DIR"));
-    let _ = std::fs::create_dir_all(&dir);
-    let path = format!("{dir}/{}.toml", g.name);
-    let _ = std::fs::write(&path, &g.toml);
-    path
+    g.save("generated-maps")
 }
 
 /// Stretches of the leader's driven path where the wide formation does not fit: the way

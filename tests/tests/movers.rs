@@ -28,22 +28,11 @@ use common::generate::Generated;
 use hil_sim::report::Report;
 
 fn seeds() -> std::ops::RangeInclusive<u64> {
-    let var = |name: &str, default: u64| {
-        std::env::var(name)
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(default)
-    };
-    let (first, n) = (var("MOVER_FIRST_SEED", 1), var("MOVER_SEEDS", 4));
-    first..=first + n.max(1) - 1
+    common::generate::seeds("MOVER_FIRST_SEED", "MOVER_SEEDS", 4)
 }
 
 fn save(g: &Generated) -> String {
-    let dir = format!("{}/../target/mover-worlds", env!("CARGO_MANIFEST_DIR"));
-    let _ = std::fs::create_dir_all(&dir);
-    let path = format!("{dir}/{}.toml", g.name);
-    let _ = std::fs::write(&path, &g.toml);
-    path
+    g.save("mover-worlds")
 }
 
 /// One world's run, and the same world's without its movers.

@@ -17,6 +17,35 @@ pub struct Generated {
     pub way: bool,
 }
 
+impl Generated {
+    /// Writes the world to `target/FOLDER/NAME.toml` (to `basestation sim` it when a suite
+    /// fails on it); its path.
+    pub fn save(&self, folder: &str) -> String {
+        let dir = format!("{}/../target/{folder}", env!("CARGO_MANIFEST_DIR"));
+        let _ = std::fs::create_dir_all(&dir);
+        let path = format!("{dir}/{}.toml", self.name);
+        let _ = std::fs::write(&path, &self.toml);
+        path
+    }
+}
+
+/// The seeds a suite runs: `count_var` of them (default `default_count`) from
+/// `first_var` (default 1; fresh worlds start at any other).
+pub fn seeds(
+    first_var: &str,
+    count_var: &str,
+    default_count: u64,
+) -> std::ops::RangeInclusive<u64> {
+    let var = |name: &str, default: u64| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let (first, n) = (var(first_var, 1), var(count_var, default_count));
+    first..=first + n.max(1) - 1
+}
+
 struct Builder {
     obstacles: Vec<String>,
     /// On the site, not on the map.
