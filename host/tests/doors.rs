@@ -41,15 +41,11 @@ fn a_flood_of_forged_fixes_moves_no_robot() {
     let (mut robots, report, _) = robots_over_udp(&site, scenario, &["--publish-fixes", &publish]);
     let at = robots.address();
     let run_report = site.path("run.json");
-    let run = Process::start(
+    let run = run_over_udp(
         &site,
+        scenario,
+        &at,
         &[
-            "run",
-            scenario,
-            "--udp",
-            &at,
-            "--bind",
-            "127.0.0.1:0",
             "--fix-feed",
             &feed,
             "--report",
@@ -204,15 +200,11 @@ fn the_console_survives_floods_of_connections_headers_and_stalled_bodies() {
     let (mut robots, report, trace_csv) = robots_over_udp(&site, scenario, &[]);
     let at = robots.address();
     let run_report = site.path("run.json");
-    let mut run = Process::start(
+    let mut run = run_over_udp(
         &site,
+        scenario,
+        &at,
         &[
-            "run",
-            scenario,
-            "--udp",
-            &at,
-            "--bind",
-            "127.0.0.1:0",
             "--console",
             "127.0.0.1:0",
             "--report",
@@ -342,15 +334,11 @@ fn forged_scans_neither_stop_nor_blind_the_station() {
     let (mut robots, report, _) = robots_over_udp(&site, scenario, &["--publish-scan", &feed]);
     let at = robots.address();
     let run_report = site.path("run.json");
-    let run = Process::start(
+    let run = run_over_udp(
         &site,
+        scenario,
+        &at,
         &[
-            "run",
-            scenario,
-            "--udp",
-            &at,
-            "--bind",
-            "127.0.0.1:0",
             "--scan-feed",
             &feed,
             "--report",

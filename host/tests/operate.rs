@@ -124,15 +124,11 @@ fn run_routes_round_an_unmapped_van_from_the_scan_feed() {
     );
     let at = robots.address();
     let run_report = site.path("run.json");
-    Process::start(
+    run_over_udp(
         &site,
+        scenario,
+        &at,
         &[
-            "run",
-            scenario,
-            "--udp",
-            &at,
-            "--bind",
-            "127.0.0.1:0",
             "--scan-feed",
             &feed,
             "--report",
@@ -250,15 +246,11 @@ fn a_localization_feed_that_stops_is_reported_and_stops_the_fleet() {
     );
     let at = robots.address();
     let run_report = site.path("run.json");
-    let run = Process::start(
+    let run = run_over_udp(
         &site,
+        scenario,
+        &at,
         &[
-            "run",
-            scenario,
-            "--udp",
-            &at,
-            "--bind",
-            "127.0.0.1:0",
             "--fix-feed",
             &feed,
             "--duration",
@@ -535,15 +527,11 @@ fn an_interrupted_run_writes_its_report_and_recording_and_exits_4() {
     let (mut robots, _, _) = robots_over_udp(&site, scenario, &[]);
     let at = robots.address();
     let (report, recording) = (site.path("run.json"), site.path("run.mcap"));
-    let run = Process::start(
+    let run = run_over_udp(
         &site,
+        scenario,
+        &at,
         &[
-            "run",
-            scenario,
-            "--udp",
-            &at,
-            "--bind",
-            "127.0.0.1:0",
             "--report",
             report.to_str().unwrap(),
             "--mcap",

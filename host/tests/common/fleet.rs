@@ -240,6 +240,13 @@ pub fn events(run_report: &Value) -> Vec<(f64, String, Option<u64>)> {
 
 /// `robots` over UDP with its report and trace in the site's directory, and `extra`
 /// arguments: the process, its report's path, its trace's path.
+/// `run SCENARIO --udp AT --bind 127.0.0.1:0 EXTRA…` in `site`: the station driving the
+/// robots that listen at `at` (`robots_over_udp`'s address).
+pub fn run_over_udp(site: &Site, scenario: &str, at: &str, extra: &[&str]) -> Process {
+    let args = ["run", scenario, "--udp", at, "--bind", "127.0.0.1:0"];
+    Process::start(site, &[&args[..], extra].concat())
+}
+
 pub fn robots_over_udp(site: &Site, scenario: &str, extra: &[&str]) -> (Process, PathBuf, PathBuf) {
     let (report, trace) = (site.path("robots.json"), site.path("robots.csv"));
     let mut args = vec!["robots", scenario, "--udp", "127.0.0.1:0", "--report"];
