@@ -53,9 +53,13 @@ pub const HISTORY_MS: u32 = 1200;
 pub const MOVING_MPS: f64 = 0.3;
 /// A large track not novel this long stands still, ms.
 pub const STILL_MS: u32 = 500;
-/// A small one, or one that moved before, must stand this long (a person who stops in
-/// the way, not one who slows in a crowd; a bin is still a bin two seconds later), ms.
+/// A small one must stand this long (a bin is still a bin two seconds later), ms.
 pub const STOPPED_MS: u32 = 2000;
+/// One that moved before, this long: a person who stopped in the way, not one held up
+/// in a crowd for a few seconds (marked at 2 s, the people a crowd held up walled the
+/// plaza off for the line of robots: "no route" on `plaza-0.1-social-seed1`). Until then
+/// the track stays a mover standing, which the leader yields to, ms.
+pub const PAUSED_MS: u32 = 6000;
 /// A cluster this long or longer is marked at once, before it is judged (a wall, a van
 /// across the street; people side by side in a crowd are shorter), m.
 pub const LARGE_M: f64 = 2.0;
@@ -285,7 +289,9 @@ impl Track {
             self.motion = Motion::Moving;
             self.moved = true;
         } else if self.settled_since.is_some_and(|t| {
-            let need = if self.moved || self.extent < LARGE_M {
+            let need = if self.moved {
+                PAUSED_MS
+            } else if self.extent < LARGE_M {
                 STOPPED_MS
             } else {
                 STILL_MS

@@ -362,6 +362,23 @@ impl ClearanceGrid {
             .then(|| j as usize * self.nx + i as usize)
     }
 
+    /// The cell nearest to cell `k` with some clearance, no farther than `reach`.
+    fn nearest_free(&self, k: usize, reach: f64) -> Option<usize> {
+        let n = (reach / self.cell).ceil() as i64;
+        let (i0, j0) = ((k % self.nx) as i64, (k / self.nx) as i64);
+        let mut best: Option<(i64, usize)> = None;
+        for j in (j0 - n).max(0)..=(j0 + n).min(self.ny as i64 - 1) {
+            for i in (i0 - n).max(0)..=(i0 + n).min(self.nx as i64 - 1) {
+                let d2 = (i - i0).pow(2) + (j - j0).pow(2);
+                let c = j as usize * self.nx + i as usize;
+                if d2 <= n * n && self.clear[c] > 0.0 && best.is_none_or(|(b, _)| d2 < b) {
+                    best = Some((d2, c));
+                }
+            }
+        }
+        best.map(|(_, c)| c)
+    }
+
     fn centre(&self, k: usize) -> DVec2 {
         self.origin + DVec2::new((k % self.nx) as f64, (k / self.nx) as f64) * self.cell
     }
@@ -679,9 +696,14 @@ impl RoutePlanner {
                 },
             });
         };
-        if g.clear[s] <= 0.0 {
-            return Err(NoRoute::StartBlocked { start });
-        }
+        // Inside a mark (a person who stopped beside the leader, marked with their
+        // personal space round them): the way out is to the nearest free cell.
+        let s = if g.clear[s] > 0.0 {
+            s
+        } else {
+            g.nearest_free(s, STEP_OUT_M)
+                .ok_or(NoRoute::StartBlocked { start })?
+        };
         let clear = self.clearances(start, blocked);
         let tc = clear[t] as f64;
         if tc < self.params.hard_clearance {
@@ -871,6 +893,8 @@ impl RoutePlanner {
 
 /// Fine cells per coarse cell side in the first search.
 const COARSE: usize = 5;
+/// A start inside a mark steps out to a free cell this near, m.
+const STEP_OUT_M: f64 = 1.5;
 /// Coarse cells either side of the coarse route that the fine search may use.
 const CORRIDOR: usize = 3;
 
@@ -1046,6 +1070,31 @@ mod tests {
             .iter()
             .map(|p| map.clearance(*p, 5.0))
             .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn a_start_inside_a_mark_steps_out_of_it() {
+        // A person who stopped beside the leader, marked with 0.8 m round them: the leader
+        // stands inside the mark and still has a way out (it had "no route" for 260 s).
+        let person = Obstacle::Circle {
+            center: DVec2::new(5.0, 0.5),
+            radius: 1.1,
+        };
+        let map = Map::new(vec![person]);
+        let rp = RoutePlanner::new(&map, &[DVec2::ZERO, DVec2::new(20.0, 0.0)], params());
+        let start = DVec2::new(5.0, 0.0);
+        assert!(map.clearance(start, 5.0) <= 0.0);
+        let route = rp
+            .plan(start, DVec2::new(20.0, 0.0), &[])
+            .expect("a way out of the mark");
+        assert_eq!(route.points[0], start);
+        // A wall the robot stands in is not a mark it can step out of by 1.5 m.
+        let wall = Map::new(vec![rect((3.0, -5.0), (7.0, 5.0))]);
+        let rp = RoutePlanner::new(&wall, &[DVec2::ZERO, DVec2::new(20.0, 0.0)], params());
+        assert!(matches!(
+            rp.plan(start, DVec2::new(20.0, 0.0), &[]),
+            Err(NoRoute::StartBlocked { .. })
+        ));
     }
 
     #[test]

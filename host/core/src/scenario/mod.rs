@@ -638,7 +638,8 @@ impl Default for PerceptionSpec {
 pub struct YieldingSpec {
     /// What the leader keeps from a person's footprint when passing, m.
     pub personal_space_m: f64,
-    /// How far ahead in time the leader looks for a mover crossing its way, s.
+    /// How far ahead in time the leader keeps people's personal space, under a constant
+    /// velocity prediction (longer: more cautious, and slower in a crowd), s.
     pub horizon_s: f64,
     /// A leader held by movers this long takes another way, if there is one, s.
     pub replan_after_s: f64,
@@ -648,7 +649,7 @@ impl Default for YieldingSpec {
     fn default() -> Self {
         Self {
             personal_space_m: 0.8,
-            horizon_s: 4.0,
+            horizon_s: 1.0,
             replan_after_s: 20.0,
         }
     }
