@@ -7,21 +7,26 @@
 //! reference; every moving track along its estimated velocity, its disc grown by its
 //! position's and (for a while) its velocity's uncertainty.
 //!
-//! - A speed keeps everyone **clear** when, over the next [`NEAR_S`], nobody comes within
-//!   [`TOUCH_M`] of a robot, and over the next [`IMMINENT_S`] nobody within [`CLEAR_M`];
-//!   unless standing would leave them no more room (they come by anyway, and a moving
-//!   robot does not make it worse). Someone about to touch a robot within [`IMMINENT_S`]
-//!   is stopped for all the same when the robots cannot count on them to steer round:
-//!   see [`Yielding::wary`].
-//! - It keeps the **room owed** when nothing comes closer than the personal space
-//!   (`personal_space_m`, from a person's footprint) or [`VEHICLE_SPACE_M`] (from
-//!   anything larger) over `[yielding] horizon_s`, or no closer than standing would.
+//! Each speed is judged, mover by mover, against the fleet standing still:
 //!
-//! The fastest speed that keeps both is taken; else the fastest slow one ([`SLOW_SHARE`])
-//! that keeps everyone clear; else a standstill. Why not the room over a long horizon (4 s
-//! until 2026-12-03): in a crowd of 0.1 persons/m² some constant-velocity prediction
-//! always crossed the fleet's way 4 s out, and the leader stood for 170 of 300 s while
-//! people, who steer round robots, would have made room.
+//! - **Safe** ([`safe`]): moving touches nobody, i.e. nobody comes within [`TOUCH_M`] of a
+//!   robot over the next [`NEAR_S`] whom standing would leave more room. And whoever is
+//!   about to touch a robot within [`IMMINENT_S`] is stopped for, moving or not, when
+//!   the robots cannot count on them to steer round ([`Yielding::wary`]: not known yet,
+//!   or walking at the fleet standing as if they did not see it).
+//! - **No intrusion** ([`intrudes`]): moving brings nobody within [`CLEAR_M`] over the
+//!   next [`IMMINENT_S`] where standing would leave them more room.
+//! - **Room kept** ([`owes`]): moving brings nobody within the personal space
+//!   (`personal_space_m`, from a person's footprint) or [`VEHICLE_SPACE_M`] (from
+//!   anything larger) over `[yielding] horizon_s`, where standing would leave more.
+//!
+//! The leader takes the fastest safe speed that keeps the room; passes people whose room
+//! it cannot keep no faster than [`PASSING_SHARE`]; crosses those it cannot keep clear of
+//! (a crowd all round) no faster than [`SLOW_SHARE`]; else it stands. Courtesy slows it,
+//! only safety stops it. The other way round, with the room over a 4 s horizon as a
+//! condition to move (until 2026-12-03), some constant-velocity prediction always
+//! crossed the fleet's way in a crowd of 0.1 persons/m², and the leader stood for 170 of
+//! 300 s among people who steer round robots and would have made room.
 //!
 //! Why this and not ORCA or a velocity obstacle on the leader's heading: the leader leads
 //! a formation, and a swerve of the leader swings every slot; a path kept and a pace
@@ -70,17 +75,20 @@ const IMMINENT_S: f64 = 0.75;
 const KNOWN_S: f64 = 1.5;
 /// A mover that walks at the fleet standing this long does not see it, s.
 const AIMING_S: f64 = 0.5;
-/// Over it, a moving robot keeps at least this from every mover's footprint, whatever
-/// the mover does (a moving robot that is walked into has still touched someone), m.
-const CLEAR_M: f64 = 0.5;
+/// A moving robot keeps this from a mover's disc: the disc is already grown by the
+/// track's uncertainty (0.15-0.2 m for a person in view), so about the 0.5 m of the
+/// intrusion measure from their footprint, m.
+const CLEAR_M: f64 = 0.3;
 /// A pace that keeps this much less room than standing would owes the mover its room;
 /// one that keeps about as much (they come by anyway) does not, m.
 const NO_WORSE_M: f64 = 0.05;
-/// Nobody comes this close to a moving robot's footprint (the track's uncertainty on
-/// top), even passing by, m.
+/// Moving brings nobody this close to a robot's footprint (the track's uncertainty on
+/// top), m.
 const TOUCH_M: f64 = 0.15;
-/// Where the personal space holds only over the near part, the leader goes no faster
-/// than this share of its pace.
+/// Where the leader cannot keep someone's personal space, it passes them no faster than
+/// this share of its pace.
+const PASSING_SHARE: f64 = 0.8;
+/// Where it cannot keep clear of them either (a crowd all round), no faster than this.
 const SLOW_SHARE: f64 = 0.4;
 /// Speeding up again needs this much more room than keeping a pace, m.
 const RESUME_MARGIN_M: f64 = 0.1;
@@ -211,8 +219,9 @@ impl Yielding {
         movers: &[TrackView],
     ) -> f64 {
         let standing = rollout(fleet, formation, movers, 0.0, &self.spec);
-        let wary = self.wary(now_s, movers, &standing);
-        let mut slow = None;
+        let wary = self.wary(now_s, fleet, movers);
+        // The fastest pace of each tier: courteous (0), no intrusion (1), safe (2).
+        let mut tiers = [None; 3];
         for share in SHARES.into_iter().filter(|s| *s > 0.0) {
             let gaps = rollout(fleet, formation, movers, share, &self.spec);
             let extra = if share > self.last + 1e-9 {
@@ -220,30 +229,23 @@ impl Yielding {
             } else {
                 0.0
             };
-            // Clear: nobody comes within CLEAR_M, or (passing by) no closer than they
-            // would to the fleet standing; and nobody close to touching whatever.
-            let clear = gaps.iter().zip(&standing).zip(&wary).all(|((g, s), wary)| {
-                let no_worse = g.near >= s.near - NO_WORSE_M;
-                let no_worse_soon = g.imminent >= s.imminent - NO_WORSE_M;
-                let stop_for = *wary && g.imminent < TOUCH_M + extra;
-                (g.near >= TOUCH_M + extra || (no_worse && !stop_for))
-                    && (g.imminent >= CLEAR_M + extra || no_worse_soon)
-            });
-            if !clear {
+            let each = || gaps.iter().zip(&standing);
+            if !each().zip(&wary).all(|((g, s), w)| safe(g, s, *w, extra)) {
                 continue;
             }
-            let owes = gaps
-                .iter()
-                .zip(&standing)
-                .any(|(g, s)| g.ahead < g.owed + extra && g.ahead < s.ahead - NO_WORSE_M);
-            if !owes {
-                return share;
-            }
-            if slow.is_none() && share <= SLOW_SHARE {
-                slow = Some(share);
+            let tier = if !each().all(|(g, s)| !intrudes(g, s, extra)) {
+                2
+            } else if !each().all(|(g, s)| !owes(g, s, extra)) {
+                1
+            } else {
+                0
+            };
+            let cap = [1.0, PASSING_SHARE, SLOW_SHARE][tier];
+            if share <= cap + 1e-9 && tiers[tier].is_none() {
+                tiers[tier] = Some(share);
             }
         }
-        slow.unwrap_or(0.0)
+        tiers.into_iter().flatten().fold(0.0, f64::max)
     }
 
     /// Which movers the robots stop for when they are about to touch one, even if
@@ -251,18 +253,20 @@ impl Yielding {
     /// those that kept walking at the fleet standing for [`AIMING_S`] (they do not see
     /// it). The rest have shown they steer round the robots; a robot that stopped for
     /// everyone walking its way would never cross a crowd.
-    fn wary(&mut self, now_s: f64, movers: &[TrackView], standing: &[Gaps]) -> Vec<bool> {
+    fn wary(&mut self, now_s: f64, fleet: &Fleet<'_>, movers: &[TrackView]) -> Vec<bool> {
         self.manners
             .retain(|id, _| movers.iter().any(|m| m.id == *id));
+        let robots: Vec<DVec2> = std::iter::once(fleet.leader.position)
+            .chain(fleet.followers.iter().flatten().copied())
+            .collect();
         movers
             .iter()
-            .zip(standing)
-            .map(|(m, s)| {
+            .map(|m| {
                 let manners = self.manners.entry(m.id).or_insert(Manners {
                     first_s: now_s,
                     aiming_since_s: None,
                 });
-                if s.near < TOUCH_M {
+                if aims(m, &robots, fleet.footprint) {
                     manners.aiming_since_s.get_or_insert(now_s);
                 } else {
                     manners.aiming_since_s = None;
@@ -377,6 +381,41 @@ fn rollout(
         }
     }
     gaps
+}
+
+/// Whether a pace is safe for one mover (`g`; `s` with the fleet standing; `wary`: see
+/// [`Yielding::wary`]): the robots touch nobody by moving (nobody comes within
+/// [`TOUCH_M`] over [`NEAR_S`] whom standing would leave more room), and they stop for
+/// whoever they cannot count on to steer round them and is about to touch them.
+fn safe(g: &Gaps, s: &Gaps, wary: bool, extra: f64) -> bool {
+    let touch = g.near < TOUCH_M + extra;
+    let worse = g.near < s.near - NO_WORSE_M;
+    let stop_for = wary && g.imminent < TOUCH_M + extra;
+    !touch || (!worse && !stop_for)
+}
+
+/// Whether a pace brings the robots within [`CLEAR_M`] of a mover over [`IMMINENT_S`]
+/// where standing would leave them more room.
+fn intrudes(g: &Gaps, s: &Gaps, extra: f64) -> bool {
+    g.imminent < CLEAR_M + extra && g.imminent < s.imminent - NO_WORSE_M
+}
+
+/// Whether a pace brings the robots within the room a mover is owed over `horizon_s`
+/// where standing would leave them more.
+fn owes(g: &Gaps, s: &Gaps, extra: f64) -> bool {
+    g.ahead < g.owed + extra && g.ahead < s.ahead - NO_WORSE_M
+}
+
+/// Whether `m` walks at one of `robots` standing: its mean way over [`NEAR_S`] comes
+/// within [`TOUCH_M`] of one's footprint. Not its disc grown by its uncertainty: a track
+/// the scanner lost grows round the robots without anyone walking at them.
+fn aims(m: &TrackView, robots: &[DVec2], footprint: f64) -> bool {
+    let reach = m.radius.max(MIN_RADIUS_M) + footprint + TOUCH_M;
+    let steps = (NEAR_S / STEP_S).ceil() as usize;
+    (1..=steps).any(|k| {
+        let at = m.at(k as f64 * STEP_S);
+        robots.iter().any(|r| r.distance(at) < reach)
+    })
 }
 
 /// The points of `trail` up to the first `length` along it from its first, and the
@@ -537,5 +576,17 @@ mod tests {
         assert!(decide(&mut y, 2.0, &[at_the_leader(1)]) > 0.0);
         // Still walking at the leader half a second on: they do not see it.
         assert_eq!(decide(&mut y, 2.5, &[at_the_leader(1)]), 0.0);
+    }
+
+    #[test]
+    fn the_leader_passes_someone_whose_room_it_cannot_keep_slower() {
+        let mut y = Yielding::new(YieldingSpec::default());
+        // Someone standing 0.9 m beside the way just ahead: the leader passes within
+        // their personal space, not within touch.
+        let beside = person(1, (0.8, 0.9), (0.0, 0.0));
+        assert_eq!(decide(&mut y, 0.0, &[beside]), PASSING_SHARE);
+        // Nobody near: full pace.
+        let far = person(1, (0.8, 4.0), (0.0, 0.0));
+        assert_eq!(decide(&mut y, 0.1, &[far]), 1.0);
     }
 }
