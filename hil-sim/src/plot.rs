@@ -140,9 +140,10 @@ where
         report.collisions,
         report.min_obstacle_clearance_m
     );
-    let title = if report.movers.count > 0 {
+    // The movers' line under the title: on one line the two outran the panel.
+    let movers = (report.movers.count > 0).then(|| {
         format!(
-            "{title}; {} movers: contacts {} moving, {} standing; least person clearance {}",
+            "{} movers: contacts {} moving, {} standing; least person clearance {}",
             report.movers.count,
             report.movers.contacts_moving,
             report.movers.contacts_standing,
@@ -151,11 +152,13 @@ where
                 .min_person_clearance_m
                 .map_or("—".to_string(), |c| format!("{c:.2} m"))
         )
-    } else {
-        title
-    };
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 16))
+    });
+    let area = area.titled(&title, ("sans-serif", 16))?;
+    let mut builder = ChartBuilder::on(&area);
+    if let Some(line) = movers {
+        builder.caption(line, ("sans-serif", 14));
+    }
+    let mut chart = builder
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(40)
