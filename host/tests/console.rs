@@ -147,10 +147,15 @@ fn start_sim(dir: &Path) -> (Killed, String, PathBuf, PathBuf) {
 
 /// [`start_sim`] with more arguments (faults).
 fn start_sim_with(dir: &Path, extra: &[&str]) -> (Killed, String, PathBuf, PathBuf) {
+    start_sim_on(dir, &scenario(dir), extra)
+}
+
+/// [`start_sim_with`] on another scenario file.
+fn start_sim_on(dir: &Path, file: &Path, extra: &[&str]) -> (Killed, String, PathBuf, PathBuf) {
     let (report, trace) = (dir.join("report.json"), dir.join("trace.csv"));
     let mut sim = common::basestation()
         .arg("sim")
-        .arg(scenario(dir))
+        .arg(file)
         .args(extra)
         .args(["--realtime", "--console", "127.0.0.1:0", "--report"])
         .arg(&report)
@@ -696,4 +701,35 @@ fn a_halting_fault_is_a_banner_in_words() {
         !events.as_str().unwrap().contains("robot_fault:"),
         "events in words: {events}"
     );
+}
+
+/// The map shows the station's tracks (a ring and where each will be in 1 s) and, in a
+/// simulation, the movers as they truly are. Issue 29.
+#[test]
+fn the_map_shows_tracks_and_the_movers() {
+    let dir = common::scratch("console-movers");
+    let Some((_browser, mut page)) = open_browser(&dir) else {
+        return;
+    };
+    // The 24 s passage with someone walking to and fro across the leader's way ahead.
+    let walker = "\n[[movers]]\nkind = \"pedestrian\"\npath = [[6.0, 13.0], [6.0, 7.0]]\n\
+                  speed = 1.0\nrepeat = \"back_and_forth\"\nbehavior = \"social\"\n";
+    let text = std::fs::read_to_string(scenario(&dir)).unwrap() + walker;
+    let file = dir.join("passage-walker.toml");
+    std::fs::write(&file, text).unwrap();
+    let (_sim, url, _, _) = start_sim_on(&dir, &file, &[]);
+    page.call("Page.navigate", json!({ "url": url }));
+    std::thread::sleep(Duration::from_secs(5));
+    let movers = page.eval("state.movers.length");
+    let moving = page.eval(
+        "state.tracks.filter((t) => t.motion === 'moving' && Math.hypot(t.at[0] - 6, t.at[1] - 10) < 4).length",
+    );
+    let legend = page.eval("state.tracks.length > 0 && state.movers.length > 0");
+    page.screenshot(&dir.join("console-movers.png"));
+    assert_eq!(movers, 1, "the simulation's one walker");
+    assert!(
+        moving.as_u64().unwrap() >= 1,
+        "the walker tracked: {moving}"
+    );
+    assert_eq!(legend, true);
 }

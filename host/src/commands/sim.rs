@@ -8,11 +8,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use anyhow::Context;
+use base_station::scenario::movers::MoverShape;
 use clap::Args;
 use hil_sim::recording::Recording;
 use hil_sim::report::Report;
 use hil_sim::run::simulate_with;
-use hil_sim::world::SimOptions;
+use hil_sim::world::{SimOptions, World};
 
 #[derive(Args, Debug)]
 pub struct SimArgs {
@@ -137,7 +138,9 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
                 world.station.operator(command, now_ms);
             }
             if world.t_us.is_multiple_of(100_000) {
-                console.publish(&crate::live::console::snapshot(&world.station, now_ms));
+                let mut snapshot = crate::live::console::snapshot(&world.station, now_ms);
+                snapshot["movers"] = movers_json(&world);
+                console.publish(&snapshot);
             }
         }
         if let Some(live) = live.as_mut() {
@@ -360,4 +363,23 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Pat
         plot_path.display(),
         mcap_path.display()
     );
+}
+
+/// The simulation's truth for the console: each mover's footprint (a real run knows only
+/// the station's tracks).
+fn movers_json(world: &World) -> serde_json::Value {
+    let t_s = world.t_us as f64 / 1e6;
+    let movers = world.movers.states(t_s).map(|m| {
+        let (length, width, round) = match m.shape {
+            MoverShape::Circle { radius } => (2.0 * radius, 2.0 * radius, true),
+            MoverShape::Rectangle { length, width } => (length, width, false),
+        };
+        serde_json::json!({
+            "at": [m.position.x, m.position.y],
+            "heading": m.heading,
+            "size": [length, width],
+            "round": round,
+        })
+    });
+    serde_json::Value::Array(movers.collect())
 }

@@ -24,6 +24,9 @@ use serde_json::{json, Value};
 
 /// Events the page shows, newest last.
 const EVENTS_SHOWN: usize = 30;
+/// Tracks the page shows at most (the nearest to the leader first): a dense crowd's
+/// hundreds would make every snapshot heavy.
+const TRACKS_SHOWN: usize = 150;
 
 pub struct Console {
     shared: Arc<server::Shared>,
@@ -256,6 +259,7 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         .route()
         .map(|r| r.points.iter().map(|p| [p.x, p.y]).collect())
         .unwrap_or_default();
+    let tracks = tracks_json(station, now_ms);
     let events = station.events();
     let events: Vec<Value> = events[events.len().saturating_sub(EVENTS_SHOWN)..]
         .iter()
@@ -284,7 +288,35 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         "hold": station.operator_hold().map(|h| h.name()),
         "arrived": station.arrived(),
         "events": events,
+        "tracks": tracks,
     })
+}
+
+/// What the station believes moves or stands on the site: each track's place, velocity,
+/// size (grown by its uncertainty) and motion.
+fn tracks_json(station: &BaseStation, now_ms: u32) -> Vec<Value> {
+    let near = station
+        .leader_estimate(now_ms)
+        .map_or(glam::DVec2::ZERO, |l| l.pose.position);
+    let mut tracks: Vec<_> = station.tracks(now_ms).collect();
+    tracks.sort_by(|a, b| {
+        a.position
+            .distance(near)
+            .total_cmp(&b.position.distance(near))
+    });
+    tracks
+        .iter()
+        .take(TRACKS_SHOWN)
+        .map(|t| {
+            json!({
+                "at": [t.position.x, t.position.y],
+                "v": [t.velocity.x, t.velocity.y],
+                "r": t.radius + t.position_sigma,
+                "motion": t.motion,
+                "person": t.person,
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]
