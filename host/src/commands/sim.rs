@@ -139,7 +139,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
             }
             if world.t_us.is_multiple_of(100_000) {
                 let mut snapshot = crate::live::console::snapshot(&world.station, now_ms);
-                snapshot["movers"] = movers_json(&world);
+                snapshot["movers"] = movers_json(world);
                 console.publish(&snapshot);
             }
         }
