@@ -208,9 +208,9 @@ impl Yielding {
         }
     }
 
-    /// The fastest share that keeps clear of everyone over the near part of the horizon
-    /// and owes nobody their room (see the module's doc); else a slow one that owes
-    /// nobody over the near part; else a standstill.
+    /// The fastest safe share, no faster than its courtesy allows (see the module's doc):
+    /// any pace where it keeps everyone's room, [`PASSING_SHARE`] where it cannot,
+    /// [`SLOW_SHARE`] where it would intrude; else a standstill.
     fn choose(
         &mut self,
         now_s: f64,
@@ -220,8 +220,7 @@ impl Yielding {
     ) -> f64 {
         let standing = rollout(fleet, formation, movers, 0.0, &self.spec);
         let wary = self.wary(now_s, fleet, movers);
-        // The fastest pace of each tier: courteous (0), no intrusion (1), safe (2).
-        let mut tiers = [None; 3];
+        // The shares come fastest first: the first one within its cap is the answer.
         for share in SHARES.into_iter().filter(|s| *s > 0.0) {
             let gaps = rollout(fleet, formation, movers, share, &self.spec);
             let extra = if share > self.last + 1e-9 {
@@ -233,19 +232,18 @@ impl Yielding {
             if !each().zip(&wary).all(|((g, s), w)| safe(g, s, *w, extra)) {
                 continue;
             }
-            let tier = if !each().all(|(g, s)| !intrudes(g, s, extra)) {
-                2
-            } else if !each().all(|(g, s)| !owes(g, s, extra)) {
-                1
+            let cap = if each().any(|(g, s)| intrudes(g, s, extra)) {
+                SLOW_SHARE
+            } else if each().any(|(g, s)| owes(g, s, extra)) {
+                PASSING_SHARE
             } else {
-                0
+                1.0
             };
-            let cap = [1.0, PASSING_SHARE, SLOW_SHARE][tier];
-            if share <= cap + 1e-9 && tiers[tier].is_none() {
-                tiers[tier] = Some(share);
+            if share <= cap + 1e-9 {
+                return share;
             }
         }
-        tiers.into_iter().flatten().fold(0.0, f64::max)
+        0.0
     }
 
     /// Which movers the robots stop for when they are about to touch one, even if
@@ -308,8 +306,8 @@ impl Yielding {
     }
 }
 
-/// The least gap between a mover and any robot, over the near part of the horizon
-/// ([`NEAR_S`]) and over the rest, and the room the mover is owed.
+/// The least gap between a mover and any robot over the next [`IMMINENT_S`], over the
+/// next [`NEAR_S`] and over `horizon_s`, and the room the mover is owed.
 #[derive(Debug, Clone, Copy)]
 struct Gaps {
     imminent: f64,
