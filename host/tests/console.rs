@@ -94,6 +94,23 @@ impl Page {
         r["result"]["value"].clone()
     }
 
+    /// The element `id`'s class attribute.
+    fn class(&mut self, id: &str) -> Value {
+        self.eval(&format!("document.getElementById('{id}').className"))
+    }
+
+    /// The element `id`'s text.
+    fn text(&mut self, id: &str) -> Value {
+        self.eval(&format!("document.getElementById('{id}').textContent"))
+    }
+
+    /// Each robot's link cell's class (`ok`, `quiet`, `lost`), joined by commas.
+    fn links(&mut self) -> Value {
+        self.eval(
+            "Array.from(document.querySelectorAll('#robots tr td:nth-child(3)')).map((td) => td.className).join(',')",
+        )
+    }
+
     /// A screenshot of the page to `path` (looked at by a person: the closing notes).
     fn screenshot(&mut self, path: &Path) {
         let shot = self.call("Page.captureScreenshot", json!({ "format": "png" }));
@@ -305,16 +322,13 @@ fn emergency_stop_from_the_browser_stops_every_robot_within_a_second() {
     );
     page.click("confirm");
     std::thread::sleep(Duration::from_secs(4));
-    assert_eq!(
-        page.eval("document.getElementById('status').textContent"),
-        "held: emergency stop"
-    );
+    assert_eq!(page.text("status"), "held: emergency stop");
     page.click("resume");
 
     let (r, _) = finished(sim, &report);
     // The run's end stays served a moment: the page says it finished, and how.
-    let banner = page.eval("document.getElementById('banner').className");
-    let text = page.eval("document.getElementById('banner').textContent");
+    let banner = page.class("banner");
+    let text = page.text("banner");
     page.screenshot(&dir.join("console-finished.png"));
     assert_eq!(banner, "finished", "{text}");
     assert!(
@@ -579,39 +593,36 @@ fn the_page_says_what_is_wrong_and_what_is_stale() {
     let (mut sim, url, _, _) = start_sim(&dir);
     page.call("Page.navigate", json!({ "url": url }));
     std::thread::sleep(Duration::from_secs(4));
-    let class = |page: &mut Page, id: &str| {
-        page.eval(&format!("document.getElementById('{id}').className"))
-    };
-    assert_eq!(class(&mut page, "banner"), "hidden", "nothing wrong yet");
+    assert_eq!(page.class("banner"), "hidden", "nothing wrong yet");
     let cells = page.eval("document.querySelectorAll('#robots tr:first-child td').length");
     assert_eq!(cells, 5, "robot, mode, link, speed, off its slot");
     page.screenshot(&dir.join("console-live.png"));
 
     // A confirmation not given is withdrawn after 5 s.
     page.click("estop");
-    assert_eq!(class(&mut page, "confirm"), "");
+    assert_eq!(page.class("confirm"), "");
     std::thread::sleep(Duration::from_secs(6));
-    assert_eq!(class(&mut page, "confirm"), "hidden");
+    assert_eq!(page.class("confirm"), "hidden");
 
     // Latched: a banner that says so, and Resume the obvious way out.
     page.click("estop");
     page.click("confirm");
     std::thread::sleep(Duration::from_millis(1500));
-    assert_eq!(class(&mut page, "banner"), "estop");
-    let text = page.eval("document.getElementById('banner').textContent");
+    assert_eq!(page.class("banner"), "estop");
+    let text = page.text("banner");
     assert!(
         text.as_str().unwrap().contains("EMERGENCY STOP LATCHED"),
         "{text}"
     );
-    assert_eq!(class(&mut page, "resume"), "way-out");
+    assert_eq!(page.class("resume"), "way-out");
     page.screenshot(&dir.join("console-estop.png"));
 
     // The station gone: stale, greyed, nothing to press.
     sim.0.kill().unwrap();
     let _ = sim.0.wait();
     std::thread::sleep(Duration::from_secs(2));
-    assert_eq!(class(&mut page, "banner"), "stale");
-    let text = page.eval("document.getElementById('banner').textContent");
+    assert_eq!(page.class("banner"), "stale");
+    let text = page.text("banner");
     assert!(
         text.as_str()
             .unwrap()
@@ -626,10 +637,7 @@ fn the_page_says_what_is_wrong_and_what_is_stale() {
             "{id} enabled with the station gone"
         );
     }
-    assert_eq!(
-        page.eval("document.getElementById('status').textContent"),
-        "station gone"
-    );
+    assert_eq!(page.text("status"), "station gone");
     page.screenshot(&dir.join("console-stale.png"));
 }
 
@@ -647,11 +655,9 @@ fn a_radio_blackout_shows_on_the_page() {
     page.call("Page.navigate", json!({ "url": url }));
     // Linked at about 1 s of the page's life; the blackout from 6 s to 10 s of the run's.
     std::thread::sleep(Duration::from_millis(8500));
-    let links = page.eval(
-        "Array.from(document.querySelectorAll('#robots tr td:nth-child(3)')).map((td) => td.className).join(',')",
-    );
-    let banner = page.eval("document.getElementById('banner').className");
-    let text = page.eval("document.getElementById('banner').textContent");
+    let links = page.links();
+    let banner = page.class("banner");
+    let text = page.text("banner");
     page.screenshot(&dir.join("console-blackout.png"));
     assert_eq!(links, "lost,lost,lost", "{text}");
     assert_eq!(banner, "halt", "{text}");
@@ -662,14 +668,9 @@ fn a_radio_blackout_shows_on_the_page() {
         "{text}"
     );
     std::thread::sleep(Duration::from_secs(5));
-    let links = page.eval(
-        "Array.from(document.querySelectorAll('#robots tr td:nth-child(3)')).map((td) => td.className).join(',')",
-    );
+    let links = page.links();
     assert_eq!(links, "ok,ok,ok", "the radio is back");
-    assert_eq!(
-        page.eval("document.getElementById('banner').className"),
-        "hidden"
-    );
+    assert_eq!(page.class("banner"), "hidden");
 }
 
 /// A stuck wheel halts the fleet: the banner says which robot, what happened and what to
@@ -684,19 +685,19 @@ fn a_halting_fault_is_a_banner_in_words() {
     let (_sim, url, _, _) = start_sim_with(&dir, &["--fault", fault]);
     page.call("Page.navigate", json!({ "url": url }));
     std::thread::sleep(Duration::from_secs(11));
-    let banner = page.eval("document.getElementById('banner').className");
-    let text = page.eval("document.getElementById('banner').textContent");
+    let banner = page.class("banner");
+    let text = page.text("banner");
     page.screenshot(&dir.join("console-fault.png"));
     assert_eq!(banner, "halt", "{text}");
     let text = text.as_str().unwrap();
     assert!(text.contains("robot 1: left wheel stalled"), "{text}");
     assert!(text.contains("Check robot 1"), "{text}");
     assert_eq!(
-        page.eval("document.getElementById('status').textContent"),
+        page.text("status"),
         "HALTED",
         "the header says the fleet is halted, not its shape"
     );
-    let events = page.eval("document.getElementById('events').textContent");
+    let events = page.text("events");
     assert!(
         !events.as_str().unwrap().contains("robot_fault:"),
         "events in words: {events}"
