@@ -187,6 +187,9 @@ impl Yielding {
         movers: &[TrackView],
     ) -> Yield {
         let share = if movers.is_empty() {
+            // Nobody moves: what was known of anyone's manners is stale (someone who
+            // stood for a while sets off as a stranger).
+            self.manners.clear();
             1.0
         } else {
             self.choose(now_s, fleet, formation, movers)
@@ -574,6 +577,17 @@ mod tests {
         assert!(decide(&mut y, 2.0, &[at_the_leader(1)]) > 0.0);
         // Still walking at the leader half a second on: they do not see it.
         assert_eq!(decide(&mut y, 2.5, &[at_the_leader(1)]), 0.0);
+    }
+
+    #[test]
+    fn someone_who_stood_sets_off_as_a_stranger() {
+        let mut y = Yielding::new(YieldingSpec::default());
+        let far = person(1, (0.0, 6.0), (1.3, 0.0));
+        assert_eq!(decide(&mut y, 0.0, &[far]), 1.0);
+        // They stood (a still track is no mover) while nobody else moved ...
+        assert_eq!(decide(&mut y, 2.0, &[]), 1.0);
+        // ... and set off at the leader: nothing is known of them any more.
+        assert_eq!(decide(&mut y, 2.1, &[at_the_leader(1)]), 0.0);
     }
 
     #[test]
