@@ -95,6 +95,8 @@ struct Mark {
     source: u8,
     /// The track whose hit it was, if a tracker judged it.
     track: Option<u32>,
+    /// A person's way on, not a hit.
+    lane: bool,
 }
 
 /// What a scan or the passing of time changed.
@@ -206,6 +208,7 @@ impl Perception {
                     last_seen_ms: now_ms,
                     source,
                     track: tag.map(|t| t.track),
+                    lane: tag.is_some_and(|t| t.lane),
                 },
             );
             self.by_age
@@ -219,13 +222,22 @@ impl Perception {
 
     /// Forgets the marks of `tracks`: they moved on.
     pub fn release(&mut self, tracks: &[u32]) -> Change {
+        self.release_where(tracks, |_| true)
+    }
+
+    /// Forgets the lane marks of `tracks` (their hits stay marked).
+    pub fn release_lanes(&mut self, tracks: &[u32]) -> Change {
+        self.release_where(tracks, |m| m.lane)
+    }
+
+    fn release_where(&mut self, tracks: &[u32], which: impl Fn(&Mark) -> bool) -> Change {
         if tracks.is_empty() {
             return Change::default();
         }
         let mut cells: Vec<Cell> = self
             .marks
             .iter()
-            .filter(|(_, m)| m.track.is_some_and(|t| tracks.contains(&t)))
+            .filter(|(_, m)| m.track.is_some_and(|t| tracks.contains(&t)) && which(m))
             .map(|(c, _)| *c)
             .collect();
         cells.sort_unstable();

@@ -27,6 +27,8 @@ use std::collections::VecDeque;
 use glam::DVec2;
 use serde::Serialize;
 
+use crate::map::Map;
+
 /// Hits this close belong to one cluster, m.
 pub const LINK_M: f64 = 0.45;
 /// A track takes a cluster this far from where it was predicted, plus 3σ, m.
@@ -66,6 +68,23 @@ pub const LARGE_M: f64 = 2.0;
 /// A track that moved and is no longer than this is a person (or a cyclist end on) and
 /// gets the personal space round its marks, m.
 pub const PERSON_M: f64 = 1.0;
+/// A person who stopped mid-way is passed behind, not in front: their way on is marked
+/// this far ahead of them, m, this much round the line, m, in steps of this, m. On
+/// `standing-person-oblivious-seed1` a person stood 20 s in the middle of the street and
+/// walked on to the kerb the leader was passing in front of them.
+pub const LANE_M: f64 = 3.0;
+pub const LANE_PAD_M: f64 = 0.3;
+const LANE_STEP_M: f64 = 0.2;
+/// Only for a person who stopped this far from every robot: one who stops nearer is most
+/// likely letting the robots by (a lane marked across their way would hold the robots
+/// for them while they wait for the robots), m.
+pub const WAITING_M: f64 = 5.0;
+/// Nor for one who stopped this near someone else moving: held up in a crowd, their way
+/// on is the crowd's, and lanes of the held-up would wall a plaza off, m.
+pub const HELD_UP_M: f64 = 3.0;
+/// Nor for one who stopped within this of a wall or a kerb: they have arrived (at a door,
+/// at the kerb they crossed to), m.
+pub const OPEN_M: f64 = 2.0;
 /// Most tracks kept (the oldest unseen go first).
 pub const MAX_TRACKS: usize = 512;
 
@@ -130,6 +149,12 @@ pub struct Track {
     pub motion: Motion,
     /// It was judged moving once (a person, a cyclist, a vehicle).
     pub moved: bool,
+    /// The way it last walked, judged moving (a unit vector), and whether it stopped on
+    /// its own ([`Near::alone`]).
+    way: Option<DVec2>,
+    stopped_far: Option<bool>,
+    /// Its lane was given up: the robots found no way behind them.
+    lane_dropped: bool,
     /// When it was first and last seen, station ms.
     pub born_ms: u32,
     pub seen_ms: u32,
@@ -176,6 +201,9 @@ impl Track {
             extent: cluster.extent,
             motion: Motion::New,
             moved: false,
+            way: None,
+            stopped_far: None,
+            lane_dropped: false,
             born_ms: now_ms,
             seen_ms: now_ms,
             at_ms: now_ms,
@@ -211,6 +239,14 @@ impl Track {
         }
     }
 
+    /// The way a person who stopped would walk on, where it is marked: they stopped far
+    /// from the robots ([`WAITING_M`]), and passing behind them was not given up.
+    fn lane(&self) -> Option<DVec2> {
+        let stood = self.motion == Motion::Still && self.is_person();
+        let marked = stood && self.stopped_far == Some(true) && !self.lane_dropped;
+        self.way.filter(|_| marked)
+    }
+
     fn is_person(&self) -> bool {
         self.moved && self.extent <= PERSON_M
     }
@@ -224,6 +260,7 @@ impl Track {
     fn take(
         &mut self,
         cluster: Cluster,
+        near: &Near<'_>,
         base: Option<&Scan>,
         now: &Surface,
         now_ms: u32,
@@ -240,6 +277,13 @@ impl Track {
         self.at_ms = now_ms;
         self.seen_ms = now_ms;
         self.extent = cluster.extent;
+        if self.motion == Motion::Moving && self.speed() > MOVING_MPS {
+            self.way = Some(DVec2::new(self.x.v, self.y.v).normalize());
+            self.stopped_far = None;
+            self.lane_dropped = false;
+        } else if self.way.is_some() && self.stopped_far.is_none() {
+            self.stopped_far = Some(near.alone(self.id, cluster.centroid));
+        }
         let novelty = base.and_then(|b| self.novelty(&cluster.hits, b, now));
         self.history.push_back((now_ms, cluster.hits));
         while self
@@ -301,6 +345,30 @@ impl Track {
             self.motion = Motion::Still;
         }
         (self.motion != before).then_some(self.motion)
+    }
+}
+
+/// What was round a track when it stopped.
+struct Near<'a> {
+    /// The site's map.
+    map: &'a Map,
+    /// The robots.
+    fleet: &'a [DVec2],
+    /// The tracks judged moving, by id.
+    moving: &'a [(u32, DVec2)],
+}
+
+impl Near<'_> {
+    /// Whether track `id`, stopping at `at`, stopped mid-way for reasons of its own: in
+    /// the open ([`OPEN_M`]), far from every robot ([`WAITING_M`]) and from anyone else
+    /// moving ([`HELD_UP_M`]).
+    fn alone(&self, id: u32, at: DVec2) -> bool {
+        self.map.clearance(at, OPEN_M) >= OPEN_M
+            && self.fleet.iter().all(|r| r.distance(at) > WAITING_M)
+            && self
+                .moving
+                .iter()
+                .all(|(other, p)| *other == id || p.distance(at) > HELD_UP_M)
     }
 }
 
@@ -459,6 +527,8 @@ pub struct Observation {
 pub struct MarkTag {
     pub track: u32,
     pub pad: f64,
+    /// A mark of the way a person who stopped would walk on (see [`LANE_M`]).
+    pub lane: bool,
 }
 
 /// What the tracker has done, for the operator.
@@ -493,7 +563,15 @@ impl Tracker {
 
     /// One scan at `now_ms` taken from `origin`: `hits` the map does not explain (site
     /// frame).
-    pub fn observe(&mut self, hits: &[DVec2], origin: DVec2, now_ms: u32) -> Observation {
+    /// `map`: the site's; `fleet`: where the robots are (the scanner's among them).
+    pub fn observe(
+        &mut self,
+        hits: &[DVec2],
+        origin: DVec2,
+        map: &Map,
+        fleet: &[DVec2],
+        now_ms: u32,
+    ) -> Observation {
         let mut out = Observation::default();
         self.age(now_ms);
         let surface = Surface::of(hits, origin);
@@ -504,11 +582,23 @@ impl Tracker {
             .cloned();
         let clusters = clusters(hits);
         let pairs = self.associate(&clusters, now_ms);
+        let moving: Vec<(u32, DVec2)> = self
+            .tracks
+            .iter()
+            .filter(|t| t.motion == Motion::Moving)
+            .map(|t| (t.id, t.predicted(now_ms).0))
+            .collect();
+        let near = Near {
+            map,
+            fleet,
+            moving: &moving,
+        };
         let mut clusters: Vec<Option<Cluster>> = clusters.into_iter().map(Some).collect();
         for (t, c) in pairs {
             let cluster = clusters[c].take().expect("each cluster taken once");
             let had_moved = self.tracks[t].moved;
-            let changed = self.tracks[t].take(cluster.clone(), base.as_ref(), &surface, now_ms);
+            let changed =
+                self.tracks[t].take(cluster.clone(), &near, base.as_ref(), &surface, now_ms);
             if let Some(motion) = changed {
                 let v = self.tracks[t].view(now_ms);
                 tracing::debug!(
@@ -548,6 +638,19 @@ impl Tracker {
             self.scans.pop_front();
         }
         out
+    }
+
+    /// Gives up the lanes marked now (no way behind the people who stopped): the ids of
+    /// their tracks, whose lane marks must go.
+    pub fn drop_lanes(&mut self) -> Vec<u32> {
+        let mut ids = Vec::new();
+        for t in &mut self.tracks {
+            if t.lane().is_some() {
+                t.lane_dropped = true;
+                ids.push(t.id);
+            }
+        }
+        ids
     }
 
     /// Ends the tracks not seen for [`LOST_MS`].
@@ -618,6 +721,7 @@ impl Tracker {
         let tag = MarkTag {
             track: track.id,
             pad,
+            lane: false,
         };
         out.marks.extend(
             cluster
@@ -626,6 +730,18 @@ impl Tracker {
                 .zip(&cluster.hits)
                 .map(|(i, h)| (*i, *h, tag)),
         );
+        if let Some(way) = track.lane() {
+            let lane = MarkTag {
+                track: track.id,
+                pad: LANE_PAD_M,
+                lane: true,
+            };
+            let steps = (LANE_M / LANE_STEP_M).round() as usize;
+            out.marks.extend((1..=steps).map(|k| {
+                let at = cluster.centroid + way * (k as f64 * LANE_STEP_M);
+                (usize::MAX, at, lane)
+            }));
+        }
     }
 
     /// Every track, predicted to `now_ms`.
@@ -648,5 +764,75 @@ impl Tracker {
 
     pub fn is_empty(&self) -> bool {
         self.tracks.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Obstacle;
+
+    /// A person's hits at `at` as a scanner at the origin sees them: the near side of a
+    /// 0.25 m disc.
+    fn person_at(at: DVec2) -> Vec<DVec2> {
+        let toward = (-at).normalize();
+        (-2..=2)
+            .map(|k| at + DVec2::from_angle(toward.to_angle() + k as f64 * 0.35) * 0.25)
+            .collect()
+    }
+
+    /// Someone walks 2.5 s along -y at 1.2 m/s to (10, 0) and stands there 8 s, scanned
+    /// at 10 Hz from the origin, with the fleet at `fleet`: the lane marks of the last
+    /// scan.
+    fn lane_after_a_stop(map: &Map, fleet: DVec2) -> (Tracker, Vec<DVec2>) {
+        let mut tracker = Tracker::new(0.8);
+        let mut last = Observation::default();
+        for k in 0..=105 {
+            let t = k as f64 * 0.1;
+            let at = DVec2::new(10.0, (3.0 - 1.2 * t).max(0.0));
+            last = tracker.observe(&person_at(at), DVec2::ZERO, map, &[fleet], k * 100);
+        }
+        let lane = last
+            .marks
+            .iter()
+            .filter(|m| m.2.lane)
+            .map(|m| m.1)
+            .collect();
+        (tracker, lane)
+    }
+
+    #[test]
+    fn a_person_who_stops_in_the_open_leaves_their_way_on_marked() {
+        let open = Map::new(vec![]);
+        let (mut tracker, lane) = lane_after_a_stop(&open, DVec2::ZERO);
+        assert!(!lane.is_empty(), "no lane marked");
+        eprintln!("{lane:?}");
+        // Ahead of them on the way they walked (from their hits' centroid, on the
+        // scanner's side of them), up to LANE_M.
+        let on_the_way = |p: &DVec2| (p.x - 10.0).abs() < 0.3 && p.y < 0.0 && p.y > -LANE_M - 0.1;
+        assert!(lane.iter().all(on_the_way), "{lane:?}");
+        // Given up (no route behind them), it is not marked again while they stand.
+        assert_eq!(tracker.drop_lanes().len(), 1);
+        let seen = tracker.observe(
+            &person_at(DVec2::new(10.0, 0.0)),
+            DVec2::ZERO,
+            &open,
+            &[],
+            10_600,
+        );
+        assert!(seen.marks.iter().all(|m| !m.2.lane));
+        assert!(!seen.marks.is_empty(), "their own hits stay marked");
+    }
+
+    #[test]
+    fn no_lane_for_a_person_who_stops_by_a_wall_or_near_the_robots() {
+        let wall = Obstacle::Circle {
+            center: DVec2::new(11.5, 0.0),
+            radius: 0.5,
+        };
+        let (_, lane) = lane_after_a_stop(&Map::new(vec![wall]), DVec2::ZERO);
+        assert!(lane.is_empty(), "arrived by a wall: {lane:?}");
+        let (_, lane) = lane_after_a_stop(&Map::new(vec![]), DVec2::new(8.0, -1.0));
+        assert!(lane.is_empty(), "stopped for the robots: {lane:?}");
     }
 }

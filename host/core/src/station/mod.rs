@@ -266,7 +266,16 @@ impl BaseStation {
         let Some(origin) = leader else {
             return;
         };
-        let seen = self.tracker.observe(&unexplained, origin, now_ms);
+        let fleet: Vec<DVec2> = self
+            .fleet
+            .positions(now_ms)
+            .iter()
+            .map(|(_, p)| *p)
+            .chain(std::iter::once(origin))
+            .collect();
+        let seen = self
+            .tracker
+            .observe(&unexplained, origin, &self.cfg.map, &fleet, now_ms);
         let mut change = self.perception.release(&seen.released);
         let marks: Vec<_> = seen.marks.iter().map(|(_, h, t)| (*h, Some(*t))).collect();
         let added = self.perception.mark(&marks, 0, now_ms);
@@ -342,6 +351,13 @@ impl BaseStation {
             .guidance
             .drive(now_s, leader.pose, look.waiting.min(pace), &self.world);
         self.report_planner(&drive.events, now_ms);
+        if drive
+            .events
+            .iter()
+            .any(|e| matches!(e, PlannerEvent::NoRoute(_)))
+        {
+            self.drop_lanes();
+        }
         self.command_leader(&leader, &drive, look.blend, now_ms);
     }
 
@@ -482,6 +498,21 @@ impl BaseStation {
             self.guidance.avoid(at, radius, from, now_s, &self.world);
         }
         y.share
+    }
+
+    /// No route: the lanes of people who stopped are given up (the robots then pass in
+    /// front of them, as without lanes).
+    fn drop_lanes(&mut self) {
+        let tracks = self.tracker.drop_lanes();
+        if tracks.is_empty() {
+            return;
+        }
+        tracing::info!(
+            tracks = tracks.len(),
+            "no way behind people who stopped: their lanes are given up"
+        );
+        let change = self.perception.release_lanes(&tracks);
+        self.apply_sensed(change);
     }
 
     /// The planner's events, as the station's.
