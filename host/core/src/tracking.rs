@@ -21,7 +21,7 @@
 //!   and the marks it left while it stood are released. A new small track is marked only
 //!   once it is judged still (a person first seen walking leaves no mark); a new large
 //!   one at once, as before tracking (a wall, a van across the street).
-//! - **Lanes**: a person who stopped mid-way on their own ([`Near::alone`]) will walk on
+//! - **Lanes**: a person who stopped mid-way on their own (in the open, alone) will walk on
 //!   the way they were walking; [`LANE_M`] of it is marked ahead of them, so the route
 //!   passes behind them. The station gives lanes up where they leave no route.
 
