@@ -88,6 +88,9 @@ pub const HELD_UP_M: f64 = 3.0;
 /// Nor for one who stopped within this of a wall or a kerb: they have arrived (at a door,
 /// at the kerb they crossed to), m.
 pub const OPEN_M: f64 = 2.0;
+/// Someone who stops ahead of the leader within the fleet's breadth and this is in its
+/// way, however near: one letting the robots by stops beside their way, m.
+pub const IN_THE_WAY_M: f64 = 1.0;
 /// Most tracks kept (the oldest unseen go first).
 pub const MAX_TRACKS: usize = 512;
 
@@ -355,6 +358,8 @@ impl Track {
 struct Near<'a> {
     /// The site's map.
     map: &'a Map,
+    /// Where the leader is and which way it faces (a unit vector).
+    leader: (DVec2, DVec2),
     /// The robots.
     fleet: &'a [DVec2],
     /// The tracks judged moving, by id.
@@ -367,11 +372,22 @@ impl Near<'_> {
     /// moving ([`HELD_UP_M`]).
     fn alone(&self, id: u32, at: DVec2) -> bool {
         self.map.clearance(at, OPEN_M) >= OPEN_M
-            && self.fleet.iter().all(|r| r.distance(at) > WAITING_M)
+            && (self.fleet.iter().all(|r| r.distance(at) > WAITING_M) || self.in_the_way(at))
             && self
                 .moving
                 .iter()
                 .all(|(other, p)| *other == id || p.distance(at) > HELD_UP_M)
+    }
+}
+
+impl Near<'_> {
+    /// Whether `at` lies ahead of the leader within the fleet's breadth (and
+    /// [`IN_THE_WAY_M`] more): someone who stops there is not letting the robots by.
+    fn in_the_way(&self, at: DVec2) -> bool {
+        let (origin, ahead) = self.leader;
+        let side = |p: DVec2| (p - origin).perp_dot(ahead).abs();
+        let breadth = self.fleet.iter().map(|r| side(*r)).fold(0.0, f64::max);
+        (at - origin).dot(ahead) > 0.0 && side(at) <= breadth + IN_THE_WAY_M
     }
 }
 
@@ -571,6 +587,7 @@ impl Tracker {
         &mut self,
         hits: &[DVec2],
         origin: DVec2,
+        heading: f64,
         map: &Map,
         fleet: &[DVec2],
         now_ms: u32,
@@ -593,6 +610,7 @@ impl Tracker {
             .collect();
         let near = Near {
             map,
+            leader: (origin, DVec2::from_angle(heading)),
             fleet,
             moving: &moving,
         };
@@ -772,6 +790,8 @@ impl Tracker {
 
 #[cfg(test)]
 mod tests {
+    use std::f64::consts::FRAC_PI_2;
+
     use super::*;
     use crate::geometry::Obstacle;
 
@@ -785,15 +805,15 @@ mod tests {
     }
 
     /// Someone walks 2.5 s along -y at 1.2 m/s to (10, 0) and stands there 8 s, scanned
-    /// at 10 Hz from the origin, with the fleet at `fleet`: the lane marks of the last
-    /// scan.
-    fn lane_after_a_stop(map: &Map, fleet: DVec2) -> (Tracker, Vec<DVec2>) {
+    /// at 10 Hz by the leader at the origin facing `heading`, a robot at `fleet`: the
+    /// lane marks of the last scan.
+    fn lane_after_a_stop(map: &Map, heading: f64, fleet: DVec2) -> (Tracker, Vec<DVec2>) {
         let mut tracker = Tracker::new(0.8);
         let mut last = Observation::default();
         for k in 0..=105 {
             let t = k as f64 * 0.1;
             let at = DVec2::new(10.0, (3.0 - 1.2 * t).max(0.0));
-            last = tracker.observe(&person_at(at), DVec2::ZERO, map, &[fleet], k * 100);
+            last = tracker.observe(&person_at(at), DVec2::ZERO, heading, map, &[fleet], k * 100);
         }
         let lane = last
             .marks
@@ -807,7 +827,7 @@ mod tests {
     #[test]
     fn a_person_who_stops_in_the_open_leaves_their_way_on_marked() {
         let open = Map::new(vec![]);
-        let (mut tracker, lane) = lane_after_a_stop(&open, DVec2::ZERO);
+        let (mut tracker, lane) = lane_after_a_stop(&open, 0.0, DVec2::ZERO);
         assert!(!lane.is_empty(), "no lane marked");
         eprintln!("{lane:?}");
         // Ahead of them on the way they walked (from their hits' centroid, on the
@@ -819,6 +839,7 @@ mod tests {
         let seen = tracker.observe(
             &person_at(DVec2::new(10.0, 0.0)),
             DVec2::ZERO,
+            0.0,
             &open,
             &[],
             10_600,
@@ -833,9 +854,18 @@ mod tests {
             center: DVec2::new(11.5, 0.0),
             radius: 0.5,
         };
-        let (_, lane) = lane_after_a_stop(&Map::new(vec![wall]), DVec2::ZERO);
+        let (_, lane) = lane_after_a_stop(&Map::new(vec![wall]), 0.0, DVec2::ZERO);
         assert!(lane.is_empty(), "arrived by a wall: {lane:?}");
-        let (_, lane) = lane_after_a_stop(&Map::new(vec![]), DVec2::new(8.0, -1.0));
+        // A robot 2.2 m from them, the leader facing past them: letting the robots by.
+        let near = DVec2::new(8.0, -1.0);
+        let (_, lane) = lane_after_a_stop(&Map::new(vec![]), FRAC_PI_2, near);
         assert!(lane.is_empty(), "stopped for the robots: {lane:?}");
+    }
+
+    #[test]
+    fn a_person_who_stops_in_the_leaders_way_is_passed_behind_however_near() {
+        let near = DVec2::new(8.0, -1.0);
+        let (_, lane) = lane_after_a_stop(&Map::new(vec![]), 0.0, near);
+        assert!(!lane.is_empty(), "stopped ahead of the leader: no lane");
     }
 }

@@ -51,7 +51,7 @@ use crate::formation::{FormationManager, FormationSpec};
 use crate::map::Map;
 use crate::perception::{Change, Perception, PerceptionLimits};
 use crate::planner::route::Route;
-use crate::planner::{PlannerEvent, PlannerParams};
+use crate::planner::{PlanPose, PlannerEvent, PlannerParams};
 use crate::tracking::{TrackView, Tracker};
 
 /// Most robots one base station serves.
@@ -261,9 +261,14 @@ impl BaseStation {
     /// become obstacles the leader avoids, and the route is planned again if they lie on
     /// it ([`crate::perception`]).
     pub fn sense(&mut self, hits: &[DVec2], now_ms: u32) {
-        let leader = self.leader_estimate(now_ms).map(|l| l.pose.position);
+        let estimate = self.leader_estimate(now_ms).map(|l| l.pose);
+        let leader = estimate.map(|p| p.position);
         let unexplained = self.perception.screen(hits, leader, &self.cfg.map);
-        let Some(origin) = leader else {
+        let Some(PlanPose {
+            position: origin,
+            heading,
+        }) = estimate
+        else {
             return;
         };
         let fleet: Vec<DVec2> = self
@@ -273,9 +278,9 @@ impl BaseStation {
             .map(|(_, p)| *p)
             .chain(std::iter::once(origin))
             .collect();
-        let seen = self
-            .tracker
-            .observe(&unexplained, origin, &self.cfg.map, &fleet, now_ms);
+        let seen =
+            self.tracker
+                .observe(&unexplained, origin, heading, &self.cfg.map, &fleet, now_ms);
         let mut change = self.perception.release(&seen.released);
         let marks: Vec<_> = seen.marks.iter().map(|(_, h, t)| (*h, Some(*t))).collect();
         let added = self.perception.mark(&marks, 0, now_ms);
