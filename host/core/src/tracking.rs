@@ -158,7 +158,7 @@ pub struct Track {
     /// The way it last walked, judged moving (a unit vector), and whether it stopped on
     /// its own ([`Near::alone`]).
     way: Option<DVec2>,
-    stopped_far: Option<bool>,
+    stopped_alone: Option<bool>,
     /// Its lane was given up: the robots found no way behind them.
     lane_dropped: bool,
     /// When it was first and last seen, station ms.
@@ -208,7 +208,7 @@ impl Track {
             motion: Motion::New,
             moved: false,
             way: None,
-            stopped_far: None,
+            stopped_alone: None,
             lane_dropped: false,
             born_ms: now_ms,
             seen_ms: now_ms,
@@ -245,11 +245,11 @@ impl Track {
         }
     }
 
-    /// The way a person who stopped would walk on, where it is marked: they stopped far
-    /// from the robots ([`WAITING_M`]), and passing behind them was not given up.
+    /// The way a person who stopped would walk on, where it is marked: they stopped on
+    /// their own ([`Near::alone`]), and passing behind them was not given up.
     fn lane(&self) -> Option<DVec2> {
         let stood = self.motion == Motion::Still && self.is_person();
-        let marked = stood && self.stopped_far == Some(true) && !self.lane_dropped;
+        let marked = stood && self.stopped_alone == Some(true) && !self.lane_dropped;
         self.way.filter(|_| marked)
     }
 
@@ -285,10 +285,10 @@ impl Track {
         self.extent = cluster.extent;
         if self.motion == Motion::Moving && self.speed() > MOVING_MPS {
             self.way = Some(DVec2::new(self.x.v, self.y.v).normalize());
-            self.stopped_far = None;
+            self.stopped_alone = None;
             self.lane_dropped = false;
-        } else if self.way.is_some() && self.stopped_far.is_none() {
-            self.stopped_far = Some(near.alone(self.id, cluster.centroid));
+        } else if self.way.is_some() && self.stopped_alone.is_none() {
+            self.stopped_alone = Some(near.alone(self.id, cluster.centroid));
         }
         let novelty = base.and_then(|b| self.novelty(&cluster.hits, b, now));
         self.history.push_back((now_ms, cluster.hits));
@@ -368,8 +368,8 @@ struct Near<'a> {
 
 impl Near<'_> {
     /// Whether track `id`, stopping at `at`, stopped mid-way for reasons of its own: in
-    /// the open ([`OPEN_M`]), far from every robot ([`WAITING_M`]) and from anyone else
-    /// moving ([`HELD_UP_M`]).
+    /// the open ([`OPEN_M`]), far from every robot ([`WAITING_M`]) unless in the leader's
+    /// way ([`Self::in_the_way`]), and far from anyone else moving ([`HELD_UP_M`]).
     fn alone(&self, id: u32, at: DVec2) -> bool {
         self.map.clearance(at, OPEN_M) >= OPEN_M
             && (self.fleet.iter().all(|r| r.distance(at) > WAITING_M) || self.in_the_way(at))
@@ -378,9 +378,7 @@ impl Near<'_> {
                 .iter()
                 .all(|(other, p)| *other == id || p.distance(at) > HELD_UP_M)
     }
-}
 
-impl Near<'_> {
     /// Whether `at` lies ahead of the leader within the fleet's breadth (and
     /// [`IN_THE_WAY_M`] more): someone who stops there is not letting the robots by.
     fn in_the_way(&self, at: DVec2) -> bool {
@@ -580,9 +578,9 @@ impl Tracker {
         }
     }
 
-    /// One scan at `now_ms` taken from `origin`: `hits` the map does not explain (site
-    /// frame).
-    /// `map`: the site's; `fleet`: where the robots are (the scanner's among them).
+    /// One scan at `now_ms` taken from `origin` (the leader, facing `heading`): `hits` the
+    /// map does not explain (site frame). `map`: the site's; `fleet`: where the robots are
+    /// (the scanner's among them).
     pub fn observe(
         &mut self,
         hits: &[DVec2],
