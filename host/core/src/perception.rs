@@ -433,6 +433,32 @@ mod tests {
         );
     }
 
+    /// A person who stopped: their hits and the lane of their way on. Giving the lane up
+    /// releases the lane marks alone; their hits stay marked until they move on.
+    #[test]
+    fn a_lane_is_released_alone_and_the_person_with_it_when_they_move() {
+        let mut p = Perception::new(LIMITS);
+        let tag = |lane| {
+            Some(MarkTag {
+                track: 7,
+                pad: 0.3,
+                lane,
+            })
+        };
+        let person = (DVec2::new(3.0, 0.0), tag(false));
+        let lane: Vec<_> = (1..=5)
+            .map(|k| (DVec2::new(3.0, -0.4 * k as f64), tag(true)))
+            .collect();
+        let mut marks = vec![person];
+        marks.extend(lane);
+        assert_eq!(p.mark(&marks, 0, 0).added.len(), 6);
+        assert!(p.release_lanes(&[8]).is_empty(), "another track's lanes");
+        assert_eq!(p.release_lanes(&[7]).removed.len(), 5);
+        assert_eq!(p.len(), 1, "the person stays marked");
+        assert_eq!(p.release(&[7]).removed.len(), 1);
+        assert_eq!(p.len(), 0);
+    }
+
     /// Issue 27, finding 3: a wall of hits (here a real one seen once) is forgotten when
     /// it is not seen again; what is seen again stays.
     #[test]
