@@ -64,6 +64,11 @@ pub enum StationEvent {
         robot: u16,
         at_ms: u32,
     },
+    /// A follower whose way ran into another robot was held short of it (`spacing`).
+    FollowerGivesWay {
+        robot: u16,
+        at_ms: u32,
+    },
     /// A follower left behind is within 0.3 m of its reference again.
     FollowerCaughtUp {
         robot: u16,
@@ -100,6 +105,9 @@ impl StationEvent {
             E::Arrived { at_ms } => (*at_ms, "goal_reached".into(), None),
             E::FollowerBehind { robot, at_ms } => (*at_ms, "follower_behind".into(), Some(*robot)),
             E::FollowerDetour { robot, at_ms } => (*at_ms, "follower_detour".into(), Some(*robot)),
+            E::FollowerGivesWay { robot, at_ms } => {
+                (*at_ms, "follower_gives_way".into(), Some(*robot))
+            }
             E::FollowerCaughtUp { robot, at_ms } => {
                 (*at_ms, "follower_caught_up".into(), Some(*robot))
             }

@@ -9,6 +9,7 @@ use protocol::messages::{faults, RobotMode, Telemetry};
 use protocol::units;
 
 use super::events::{StationEvent, REPORTED_FAULTS};
+use super::spacing::Body;
 use crate::formation::{FollowerStatus, LeaderMotion};
 use crate::planner::PlanPose;
 
@@ -88,7 +89,7 @@ impl RobotStatus {
     }
 }
 
-/// The leader as the station estimates it now.
+/// The leader (or any robot) as the station estimates it now.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LeaderEstimate {
     pub pose: PlanPose,
@@ -221,7 +222,7 @@ impl Fleet {
     }
 
     /// Each follower's (slot order) fresh position, tracking error and whether it has
-    /// joined; `detouring`: whether the station is sending it round something.
+    /// joined; `detouring`: whether the station is sending it round something or holding it.
     pub fn follower_statuses(
         &self,
         now_ms: u32,
@@ -244,7 +245,28 @@ impl Fleet {
 
     /// The leader's pose predicted to `now_ms` from its latest telemetry.
     pub fn leader_estimate(&self, now_ms: u32) -> Option<LeaderEstimate> {
-        let s = self.fresh(self.leader, now_ms)?;
+        self.estimate(self.leader, now_ms)
+    }
+
+    /// Every robot with fresh telemetry, as [`Fleet::estimate`] makes it.
+    pub fn bodies(&self, now_ms: u32) -> Vec<Body> {
+        self.ids()
+            .filter_map(|id| {
+                let e = self.estimate(id, now_ms)?;
+                Some(Body {
+                    id,
+                    position: e.pose.position,
+                    heading: e.pose.heading,
+                    v: e.v,
+                })
+            })
+            .collect()
+    }
+
+    /// A robot's pose predicted to `now_ms` from its latest telemetry, as a follower
+    /// predicts the leader's.
+    pub fn estimate(&self, id: u16, now_ms: u32) -> Option<LeaderEstimate> {
+        let s = self.fresh(id, now_ms)?;
         let t = s.telemetry?;
         let (x, y, heading) = t.pose.to_si();
         let vl = units::from_milli_i16(t.wheel_mm_s[0]) as f64;

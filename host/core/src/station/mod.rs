@@ -10,7 +10,8 @@
 //!   `operator`, a robot fault, the localization watch, a lost leader, a fleet still
 //!   assembling);
 //! - `guidance`: the planner and the formation manager (`look`, then `drive`);
-//! - `detour`: followers sent round what holds them;
+//! - `detour`: followers sent round what holds them; `spacing`: no robot driven into
+//!   another where its ring cannot see it;
 //! - `localize` with `fixes` and `fix_check`: fixes from the site's localization
 //!   forwarded and watched; [`crate::perception`]: what the scans found;
 //! - `events`: what the operator and the report are told; `smoothing`: the turn rate
@@ -26,6 +27,7 @@ mod localize;
 mod operator;
 mod radio;
 mod smoothing;
+mod spacing;
 mod yielding;
 
 use glam::DVec2;
@@ -45,6 +47,7 @@ use localize::OutgoingFix;
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
 pub use smoothing::TurnRateSmoother;
+use spacing::Spacing;
 pub use yielding::{Yield, Yielding, VEHICLE_SPACE_M};
 
 use crate::formation::{FormationManager, FormationSpec};
@@ -88,6 +91,8 @@ pub struct StationConfig {
     /// How hard the leader may brake for someone in its way (a margin under its limit),
     /// m/s².
     pub yield_brake: f64,
+    /// How far ahead of a follower's centre its control point is (the L-φ law's d), m.
+    pub control_offset: f64,
 }
 
 impl StationConfig {
@@ -110,6 +115,7 @@ impl StationConfig {
             perception: PerceptionLimits::from_scenario(s),
             yielding: s.yielding.clone(),
             yield_brake: 0.8 * s.robot.max_accel,
+            control_offset: s.follower.d,
         }
     }
 }
@@ -164,6 +170,8 @@ pub struct BaseStation {
     broadcast_omega: TurnRateSmoother,
     /// Followers being sent round what holds them.
     detours: Detours,
+    /// Followers held short of another robot.
+    spacing: Spacing,
 }
 
 impl BaseStation {
@@ -206,6 +214,7 @@ impl BaseStation {
             broadcast_omega: TurnRateSmoother::default(),
             last_command: (0.0, 0.0),
             detours: Detours::default(),
+            spacing: Spacing::default(),
         }
     }
 
@@ -325,9 +334,9 @@ impl BaseStation {
             return;
         };
         let now_s = now_ms as f64 / 1000.0;
-        let statuses = self
-            .fleet
-            .follower_statuses(now_ms, |id| self.detours.is_active(id));
+        let statuses = self.fleet.follower_statuses(now_ms, |id| {
+            self.detours.is_active(id) || self.spacing.is_held(id)
+        });
         let movers: Vec<TrackView> = self.tracker.moving(now_ms).collect();
         let crowded = self.yielding.crowded(now_s, leader.pose.position, &movers);
         self.guidance.set_crowded(crowded);
@@ -363,7 +372,7 @@ impl BaseStation {
         {
             self.drop_lanes();
         }
-        self.command_leader(&leader, &drive, look.blend, now_ms);
+        self.command_leader(&leader, (drive.v, drive.omega), look.blend, now_ms);
     }
 
     /// What every period needs whatever the gate says: handshakes, slots when due, the
@@ -536,15 +545,31 @@ impl BaseStation {
         }
     }
 
-    /// The leader's command, then the leader's state to every follower.
-    fn command_leader(&mut self, leader: &LeaderEstimate, drive: &Drive, blend: f64, now_ms: u32) {
-        self.last_command = (drive.v, drive.omega);
+    /// The leader's command (`v` capped short of the other robots: [`spacing`]), then the
+    /// leader's state to every follower.
+    fn command_leader(
+        &mut self,
+        leader: &LeaderEstimate,
+        (v, omega): (f64, f64),
+        blend: f64,
+        now_ms: u32,
+    ) {
+        let body = spacing::Body {
+            id: self.cfg.leader,
+            position: leader.pose.position,
+            heading: leader.pose.heading,
+            v: leader.v,
+        };
+        let others = self.fleet.bodies(now_ms);
+        let footprint = self.guidance.formation().spec().footprint;
+        let v = spacing::cap_leader(&body, v, &others, footprint, self.cfg.yield_brake);
+        self.last_command = (v, omega);
         let command = Message::VelocityCommand(VelocityCommand {
-            v_mm_s: units::to_milli_i16(drive.v as f32).unwrap_or(0),
-            omega_mrad_s: units::to_milli_i16(drive.omega as f32).unwrap_or(0),
+            v_mm_s: units::to_milli_i16(v as f32).unwrap_or(0),
+            omega_mrad_s: units::to_milli_i16(omega as f32).unwrap_or(0),
         });
         self.send(Address::Robot(self.cfg.leader), now_ms, &command);
-        self.broadcast_leader_state(leader, (drive.v, drive.omega), blend, now_ms);
+        self.broadcast_leader_state(leader, (v, omega), blend, now_ms);
     }
 
     /// The operator's command, sent at once and held (a Stop or an emergency stop is

@@ -142,7 +142,8 @@ impl BaseStation {
         }
     }
 
-    /// Detours for the followers held on their way ([`detour`]), sent every period.
+    /// Detours for the followers held on their way ([`detour`]) or held short of another
+    /// robot (`spacing`), sent every period.
     pub(super) fn send_detours(&mut self, leader: PlanPose, behind: &[DVec2], now_ms: u32) {
         let mut followers = Vec::new();
         for (k, id) in self.cfg.followers.iter().enumerate() {
@@ -164,7 +165,13 @@ impl BaseStation {
         let detours = self
             .detours
             .step(now_ms, &self.world, footprint, &followers, &robots);
-        for (robot, point, new) in detours {
+        let held = self.hold_apart(&followers, now_ms);
+        // A hold comes first: the way round may run into the robot it is held for.
+        let sent_round: Vec<_> = detours
+            .into_iter()
+            .filter(|(robot, _, _)| held.iter().all(|(h, _)| h != robot))
+            .collect();
+        for (robot, point, new) in sent_round {
             if new {
                 tracing::info!(
                     robot,
@@ -177,17 +184,53 @@ impl BaseStation {
                     at_ms: now_ms,
                 });
             }
-            let (Ok(x_mm), Ok(y_mm)) = (
-                units::metres_to_mm(point.x as f32),
-                units::metres_to_mm(point.y as f32),
-            ) else {
-                continue;
-            };
-            self.send(
-                Address::Robot(robot),
-                now_ms,
-                &Message::Detour(Detour { x_mm, y_mm }),
-            );
+            self.send_detour(robot, point, now_ms);
         }
+        for (robot, point) in held {
+            self.send_detour(robot, point, now_ms);
+        }
+    }
+
+    /// The followers (of those following) held short of another robot (`spacing`),
+    /// with the point each is held at.
+    fn hold_apart(&mut self, followers: &[detour::Follower], now_ms: u32) -> Vec<(u16, DVec2)> {
+        let robots = self.fleet.bodies(now_ms);
+        let moving: Vec<_> = robots
+            .iter()
+            .filter(|b| followers.iter().any(|f| f.id == b.id))
+            .copied()
+            .collect();
+        let footprint = self.guidance.formation().spec().footprint;
+        let (offset, brake) = (self.cfg.control_offset, self.cfg.yield_brake);
+        let held = self
+            .spacing
+            .step(&moving, &robots, footprint, offset, brake);
+        let mut out = Vec::new();
+        for (robot, point, new) in held {
+            if new {
+                tracing::info!(robot, "follower held short of another robot");
+                self.events.push(StationEvent::FollowerGivesWay {
+                    robot,
+                    at_ms: now_ms,
+                });
+            }
+            out.push((robot, point));
+        }
+        out
+    }
+
+    /// Tells a follower to make for `point` instead of its slot, this period.
+    fn send_detour(&mut self, robot: u16, point: DVec2, now_ms: u32) {
+        let (Ok(x_mm), Ok(y_mm)) = (
+            units::metres_to_mm(point.x as f32),
+            units::metres_to_mm(point.y as f32),
+        ) else {
+            return;
+        };
+        self.send(
+            Address::Robot(robot),
+            now_ms,
+            &Message::Detour(Detour { x_mm, y_mm }),
+        );
     }
 }
