@@ -13,6 +13,9 @@ use std::collections::BTreeMap;
 
 use glam::DVec2;
 
+/// The ring's outer beams, degrees off the way the robot drives (`hil-sim`'s ring): a
+/// robot whose centre is within them is the ring's to keep from.
+const RING_DEG: f64 = 40.0;
 /// What a robot keeps from another beyond both footprints, m.
 const KEEP_M: f64 = 0.05;
 /// A held follower goes on where its way is this clear, m.
@@ -37,8 +40,9 @@ impl Body {
     }
 }
 
-/// What lies on `body`'s way along its heading (`sign` 1) or backward (`sign` −1): for
-/// each other robot it would come within `KEEP_M` of, how far its centre can move first
+/// What lies on `body`'s way along its heading (`sign` 1) or backward (`sign` −1) where
+/// its ring does not look: for each other robot beyond `RING_DEG` off that way that it
+/// would come within `KEEP_M` of, how far its centre can move first
 /// (0 where it is within that already and the move closes in), and how fast that robot
 /// moves away along the way (negative coming at it).
 fn on_way<'a>(
@@ -56,7 +60,8 @@ fn on_way<'a>(
             let to = o.position - body.position;
             let along = to.dot(dir);
             let aside2 = to.length_squared() - along * along;
-            if along <= 0.0 || aside2 >= reach * reach {
+            let seen = along >= to.length() * RING_DEG.to_radians().cos();
+            if along <= 0.0 || seen || aside2 >= reach * reach {
                 return None;
             }
             let gap = (along - (reach * reach - aside2).sqrt()).max(0.0);
@@ -65,7 +70,8 @@ fn on_way<'a>(
 }
 
 /// How far `body` can move along its heading (`sign` 1) or backward (`sign` −1) before
-/// its footprint comes within `KEEP_M` of a robot that stands where it is now.
+/// its footprint comes within `KEEP_M` of a robot its ring does not see, standing where
+/// it is now.
 pub fn free(body: &Body, sign: f64, others: &[Body], footprint: f64) -> f64 {
     on_way(body, sign, others, footprint)
         .map(|(gap, _)| gap)
@@ -172,12 +178,17 @@ mod tests {
     }
 
     #[test]
-    fn free_is_the_way_to_a_robot_ahead_or_at_the_flank_and_unbounded_away() {
+    fn free_is_the_way_to_a_robot_the_ring_cannot_see_and_unbounded_away() {
         let me = body(1, 0.0, 0.0, 0.0, 0.5);
-        let ahead = body(2, 2.0, 0.0, 0.0, 0.0);
+        // 0.5 m ahead and 0.5 m aside: 45° off, beyond the ring's beams.
+        let ahead = body(2, 0.5, 0.5, 0.0, 0.0);
         let reach = 2.0 * FP + KEEP_M;
-        assert!((free(&me, 1.0, &[me, ahead], FP) - (2.0 - reach)).abs() < 1e-9);
+        let gap = 0.5 - (reach * reach - 0.25f64).sqrt();
+        assert!((free(&me, 1.0, &[me, ahead], FP) - gap).abs() < 1e-9);
         assert_eq!(free(&me, -1.0, &[ahead], FP), f64::INFINITY);
+        // Straight ahead is the ring's to see.
+        let seen = body(2, 0.7, 0.0, 0.0, 0.0);
+        assert_eq!(free(&me, 1.0, &[seen], FP), f64::INFINITY);
         // Square to its side, 0.6 m apart and 0.05 m ahead: touching distance, closing.
         let flank = body(2, 0.05, 0.6, 0.0, 0.0);
         assert_eq!(free(&me, 1.0, &[flank], FP), 0.0);
@@ -200,10 +211,14 @@ mod tests {
         assert!(cap_leader(&leader, 0.3, &[f], FP, 0.8).abs() < 1e-9);
         // Backing away from it is not held.
         assert!((cap_leader(&leader, -0.2, &[f], FP, 0.8) + 0.2).abs() < 1e-9);
-        // With 1 m free it may go at the speed it can stop from in that metre.
-        let far = body(1, 1.0 + 2.0 * FP + KEEP_M, 0.0, 0.0, 0.0);
+        // At 45°, 0.6 m ahead and aside: it may go at the speed it can stop from in the
+        // 0.35 m free.
+        let far = body(1, 0.6, 0.6, 0.0, 0.0);
         let v = cap_leader(&leader, 2.0, &[far], FP, 0.8);
-        assert!((stopping(v, 0.8) - 1.0).abs() < 1e-9, "{v}");
+        assert!((stopping(v, 0.8) - 0.35).abs() < 1e-9, "{v}");
+        // And not at all for a robot straight ahead: that is its ring's.
+        let ahead = body(1, 0.7, 0.0, 0.0, 0.0);
+        assert_eq!(cap_leader(&leader, 2.0, &[ahead], FP, 0.8), 2.0);
     }
 
     #[test]
