@@ -293,6 +293,31 @@ fn oblivious_crowds_on_a_plaza() {
     rarely_walked_into("plaza-oblivious", &all);
 }
 
+/// Robots standing close in a dense crowd keep apart where their rings cannot see each
+/// other (`station/spacing.rs`): the worlds of the plaza suites' fresh seeds where a
+/// follower crossing to its slot clipped another standing square to its side, and where
+/// the leader crept into a follower 65° off its heading.
+#[test]
+fn robots_keep_apart_in_dense_crowds() {
+    let mut touched = Vec::new();
+    for (density, seed) in [(0.2, 331), (0.3, 305), (0.2, 304)] {
+        let g = gen::plaza_crowd(seed, density, true);
+        let path = save(&g);
+        let s = Scenario::parse(&g.toml, &g.name).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let (r, _) = common::run(s, seed);
+        let m = &r.movers;
+        let between = r.collisions - m.contacts_moving - m.contacts_standing;
+        if between > 0 || r.min_robot_separation_m <= 0.0 {
+            touched.push(format!(
+                "{}: {between} contacts with the site or between robots, least separation \
+                 {:.3} m\n    {path}",
+                g.name, r.min_robot_separation_m
+            ));
+        }
+    }
+    assert!(touched.is_empty(), "{}", touched.join("\n"));
+}
+
 #[test]
 fn movers_among_unmapped_obstacles() {
     let (_, o) = suite("movers-unmapped", gen::movers_and_unmapped);

@@ -222,7 +222,7 @@ impl Fleet {
     }
 
     /// Each follower's (slot order) fresh position, tracking error and whether it has
-    /// joined; `detouring`: whether the station is sending it round something or holding it.
+    /// joined; `detouring`: whether the station is sending it round something.
     pub fn follower_statuses(
         &self,
         now_ms: u32,

@@ -334,9 +334,9 @@ impl BaseStation {
             return;
         };
         let now_s = now_ms as f64 / 1000.0;
-        let statuses = self.fleet.follower_statuses(now_ms, |id| {
-            self.detours.is_active(id) || self.spacing.is_held(id)
-        });
+        let statuses = self
+            .fleet
+            .follower_statuses(now_ms, |id| self.detours.is_active(id));
         let movers: Vec<TrackView> = self.tracker.moving(now_ms).collect();
         let crowded = self.yielding.crowded(now_s, leader.pose.position, &movers);
         self.guidance.set_crowded(crowded);

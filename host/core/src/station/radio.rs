@@ -8,6 +8,7 @@ use protocol::messages::{Detour, FormationCommand, LeaderState, Message, Slot, S
 use protocol::{units, Address, Reject, MAX_WIRE};
 
 use super::fleet::{is_following, position, LeaderEstimate};
+use super::spacing::{self, Order};
 use super::{detour, BaseStation, Gate, StationEvent};
 use crate::planner::PlanPose;
 
@@ -191,30 +192,40 @@ impl BaseStation {
         }
     }
 
-    /// The followers (of those following) held short of another robot (`spacing`),
-    /// with the point each is held at.
+    /// The followers (of those following) held short of another robot, and those stepping
+    /// aside for them (`spacing`), with the point each makes for.
     fn hold_apart(&mut self, followers: &[detour::Follower], now_ms: u32) -> Vec<(u16, DVec2)> {
         let robots = self.fleet.bodies(now_ms);
-        let moving: Vec<_> = robots
+        let following: Vec<_> = robots
             .iter()
             .filter(|b| followers.iter().any(|f| f.id == b.id))
             .copied()
             .collect();
-        let footprint = self.guidance.formation().spec().footprint;
-        let (offset, brake) = (self.cfg.control_offset, self.cfg.yield_brake);
-        let held = self
-            .spacing
-            .step(&moving, &robots, footprint, offset, brake);
+        let fleet = spacing::Fleet {
+            followers: &following,
+            robots: &robots,
+            footprint: self.guidance.formation().spec().footprint,
+            offset: self.cfg.control_offset,
+            brake: self.cfg.yield_brake,
+        };
+        let told = self.spacing.step(now_ms, &fleet, &self.world);
         let mut out = Vec::new();
-        for (robot, point, new) in held {
-            if new {
-                tracing::info!(robot, "follower held short of another robot");
+        for t in told {
+            if t.began {
+                match t.order {
+                    Order::Hold => {
+                        tracing::info!(robot = t.id, "follower held short of another robot")
+                    }
+                    Order::MakeRoom => {
+                        tracing::info!(robot = t.id, "follower steps aside for another")
+                    }
+                }
                 self.events.push(StationEvent::FollowerGivesWay {
-                    robot,
+                    robot: t.id,
                     at_ms: now_ms,
                 });
             }
-            out.push((robot, point));
+            out.push((t.id, t.point));
         }
         out
     }

@@ -9,9 +9,11 @@
 //! The robots are discs of one footprint, and a robot's centre moves along its heading:
 //! a robot turning on the spot never comes closer to another.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use glam::DVec2;
+
+use crate::map::Map;
 
 /// The ring's outer beams, degrees off the way the robot drives (`hil-sim`'s ring): a
 /// robot whose centre is within them is the ring's to keep from.
@@ -20,6 +22,14 @@ const RING_DEG: f64 = 40.0;
 const KEEP_M: f64 = 0.05;
 /// A held follower goes on where its way is this clear, m.
 const CLEAR_M: f64 = 0.3;
+/// A follower held this long has the follower standing in its way step aside, ms.
+const ROOM_AFTER_MS: u32 = 1500;
+/// How far beyond the held one's way it steps, m.
+const ROOM_M: f64 = 0.1;
+/// What the place it steps to keeps from the map beyond its footprint, m.
+const ROOM_MAP_M: f64 = 0.05;
+/// A robot slower than this stands, m/s.
+const STANDING: f64 = 0.05;
 /// What a stop allows for the station's delay: the telemetry's age and the command's
 /// trip (one period each), s.
 const LATENCY_S: f64 = 0.2;
@@ -50,7 +60,7 @@ fn on_way<'a>(
     sign: f64,
     others: &'a [Body],
     footprint: f64,
-) -> impl Iterator<Item = (f64, f64)> + 'a {
+) -> impl Iterator<Item = (&'a Body, f64, f64)> + 'a {
     let dir = DVec2::from_angle(body.heading) * sign;
     let reach = 2.0 * footprint + KEEP_M;
     others
@@ -65,7 +75,7 @@ fn on_way<'a>(
                 return None;
             }
             let gap = (along - (reach * reach - aside2).sqrt()).max(0.0);
-            Some((gap, o.velocity().dot(dir)))
+            Some((o, gap, o.velocity().dot(dir)))
         })
 }
 
@@ -74,7 +84,7 @@ fn on_way<'a>(
 /// it is now.
 pub fn free(body: &Body, sign: f64, others: &[Body], footprint: f64) -> f64 {
     on_way(body, sign, others, footprint)
-        .map(|(gap, _)| gap)
+        .map(|(_, gap, _)| gap)
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -103,7 +113,7 @@ fn speed_for(free: f64, brake: f64) -> f64 {
 /// stop short of every robot on that way, each braking too.
 fn top_speed(body: &Body, sign: f64, others: &[Body], footprint: f64, brake: f64) -> f64 {
     on_way(body, sign, others, footprint)
-        .map(|(gap, away)| speed_for(gap + yields(away, brake), brake))
+        .map(|(_, gap, away)| speed_for(gap + yields(away, brake), brake))
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -114,52 +124,137 @@ pub fn cap_leader(leader: &Body, v: f64, others: &[Body], footprint: f64, brake:
     v.clamp(-behind, ahead)
 }
 
-/// The followers held because their way runs into another robot, by id: the way they
-/// were moving (1 forward, −1 backing).
+/// What the station tells a follower to do for another robot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Order {
+    /// Stop: its way runs into a robot its ring cannot see.
+    Hold,
+    /// Step aside: it stands beside the way of a follower held for it.
+    MakeRoom,
+}
+
+/// One follower told something this period: the point to make for, and whether the order
+/// just began.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Told {
+    pub id: u16,
+    pub order: Order,
+    pub point: DVec2,
+    pub began: bool,
+}
+
+/// A follower held: the way it was moving (1 forward, −1 backing) and since when.
+#[derive(Debug, Clone, Copy)]
+struct Held {
+    sign: f64,
+    since_ms: u32,
+}
+
+/// The followers held because their way runs into another robot, and those stepping aside
+/// for them.
 #[derive(Debug, Default)]
 pub struct Spacing {
-    held: BTreeMap<u16, f64>,
+    held: BTreeMap<u16, Held>,
+    making_room: BTreeSet<u16>,
 }
 
 impl Spacing {
-    /// One period: holds the followers whose way, at their speed, runs into another robot
-    /// within their stopping distance, and lets go those whose way is clear. Returns each
-    /// follower held now, the point to hold it at (`offset` ahead of its centre, where its
-    /// control point is, plus what it needs to stop) and whether the hold just began.
-    /// `robots`: every robot, followers included.
-    pub fn step(
-        &mut self,
-        followers: &[Body],
-        robots: &[Body],
-        footprint: f64,
-        offset: f64,
-        brake: f64,
-    ) -> Vec<(u16, DVec2, bool)> {
+    /// One period. Holds the followers whose way, at their speed, runs into another robot
+    /// within their stopping distance, and lets go those whose way is clear; a follower
+    /// standing in the way of one held for `ROOM_AFTER_MS` steps aside (else the two wait
+    /// for each other for good: the held one for the way, the other, behind it in the
+    /// line, for its ring to see it go). Holds come first in the list. Points are for the
+    /// control point, `offset` ahead of the centre. `robots`: every robot, followers
+    /// included; `map`: what the robots must keep from.
+    pub fn step(&mut self, now_ms: u32, fleet: &Fleet, map: &Map) -> Vec<Told> {
         let mut held = BTreeMap::new();
         let mut out = Vec::new();
-        for f in followers {
+        for f in fleet.followers {
             let was = self.held.get(&f.id).copied();
-            let sign = was.unwrap_or(if f.v < 0.0 { -1.0 } else { 1.0 });
+            let sign = was.map_or(if f.v < 0.0 { -1.0 } else { 1.0 }, |h| h.sign);
             let hold = match was {
-                Some(_) => free(f, sign, robots, footprint) < CLEAR_M,
-                None => f.v.abs() > top_speed(f, sign, robots, footprint, brake),
+                Some(_) => free(f, sign, fleet.robots, fleet.footprint) < CLEAR_M,
+                None => f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake),
             };
             if !hold {
                 continue;
             }
-            held.insert(f.id, sign);
+            let since_ms = was.map_or(now_ms, |h| h.since_ms);
+            held.insert(f.id, Held { sign, since_ms });
             let ahead = DVec2::from_angle(f.heading);
-            let stop = stopping(f.v, brake) * f.v.signum();
-            out.push((f.id, f.position + ahead * (offset + stop), was.is_none()));
+            let stop = stopping(f.v, fleet.brake) * f.v.signum();
+            out.push(Told {
+                id: f.id,
+                order: Order::Hold,
+                point: f.position + ahead * (fleet.offset + stop),
+                began: was.is_none(),
+            });
+        }
+        let mut making_room = BTreeSet::new();
+        for (id, h) in &held {
+            if now_ms.wrapping_sub(h.since_ms) < ROOM_AFTER_MS {
+                continue;
+            }
+            let Some(f) = fleet.followers.iter().find(|f| f.id == *id) else {
+                continue;
+            };
+            let Some((other, point)) = room_for(f, h.sign, fleet, map) else {
+                continue;
+            };
+            if held.contains_key(&other) || !making_room.insert(other) {
+                continue;
+            }
+            out.push(Told {
+                id: other,
+                order: Order::MakeRoom,
+                point,
+                began: !self.making_room.contains(&other),
+            });
         }
         self.held = held;
+        self.making_room = making_room;
         out
     }
+}
 
-    /// Whether `follower` is held now.
-    pub fn is_held(&self, follower: u16) -> bool {
-        self.held.contains_key(&follower)
+/// What [`Spacing::step`] needs to know of the fleet this period.
+#[derive(Debug, Clone, Copy)]
+pub struct Fleet<'a> {
+    /// The followers following (not idle, stopped or failsafe).
+    pub followers: &'a [Body],
+    /// Every robot, followers included.
+    pub robots: &'a [Body],
+    pub footprint: f64,
+    /// How far ahead of a follower's centre its control point is, m.
+    pub offset: f64,
+    /// How hard a robot may brake, m/s².
+    pub brake: f64,
+}
+
+/// The follower standing nearest on `held`'s way, and the point (for its control point)
+/// that takes it `ROOM_M` beyond that way, if that point is free of the map and the other
+/// robots.
+fn room_for(held: &Body, sign: f64, fleet: &Fleet, map: &Map) -> Option<(u16, DVec2)> {
+    let (other, _) = on_way(held, sign, fleet.robots, fleet.footprint)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(o, gap, _)| (o, gap))?;
+    if other.v.abs() > STANDING || !fleet.followers.iter().any(|f| f.id == other.id) {
+        return None;
     }
+    let dir = DVec2::from_angle(held.heading) * sign;
+    let to = other.position - held.position;
+    let aside = to - dir * to.dot(dir);
+    let out = aside.try_normalize()?;
+    let reach = 2.0 * fleet.footprint + KEEP_M;
+    let centre = other.position + out * ((reach - aside.length()).max(0.0) + ROOM_M);
+    let need = fleet.footprint + ROOM_MAP_M;
+    let free_of_robots = fleet
+        .robots
+        .iter()
+        .filter(|r| r.id != other.id)
+        .all(|r| r.position.distance(centre) >= reach);
+    (free_of_robots && map.clearance(centre, need) >= need)
+        .then(|| (other.id, centre + out * fleet.offset))
 }
 
 #[cfg(test)]
@@ -221,6 +316,20 @@ mod tests {
         assert_eq!(cap_leader(&leader, 2.0, &[ahead], FP, 0.8), 2.0);
     }
 
+    fn fleet<'a>(bodies: &'a [Body]) -> Fleet<'a> {
+        Fleet {
+            followers: bodies,
+            robots: bodies,
+            footprint: FP,
+            offset: 0.2,
+            brake: 0.8,
+        }
+    }
+
+    fn open() -> Map {
+        Map::new(Vec::new())
+    }
+
     #[test]
     fn a_follower_crossing_to_another_ones_flank_is_held_until_it_moves_away() {
         let mut s = Spacing::default();
@@ -229,23 +338,54 @@ mod tests {
         let a = 60f64.to_radians();
         let one = body(1, 0.7 * a.cos(), 0.7 * a.sin(), 180.0, 0.0);
         let two = body(2, 0.0, 0.0, 0.0, 0.6);
-        let held = s.step(&[one, two], &[one, two], FP, 0.2, 0.8);
-        assert_eq!(held.len(), 1);
-        let (id, point, began) = held[0];
-        assert!(id == 2 && began);
+        let told = s.step(0, &fleet(&[one, two]), &open());
+        assert_eq!(told.len(), 1);
+        let t = told[0];
+        assert!(t.id == 2 && t.order == Order::Hold && t.began);
         // It is held at the point it can stop at, ahead of its control point.
-        assert!((point.x - (0.2 + stopping(0.6, 0.8))).abs() < 1e-9 && point.y == 0.0);
+        let x = 0.2 + stopping(0.6, 0.8);
+        assert!((t.point.x - x).abs() < 1e-9 && t.point.y == 0.0);
         // Stopped, it stays held while follower 1 stands there...
         let two = Body { v: 0.0, ..two };
-        assert_eq!(s.step(&[one, two], &[one, two], FP, 0.2, 0.8).len(), 1);
-        assert!(s.is_held(2));
+        let told = s.step(100, &fleet(&[one, two]), &open());
+        assert!(told.len() == 1 && !told[0].began && s.held.contains_key(&2));
         // ...and goes on once follower 1 has moved off.
         let one = Body {
             position: DVec2::new(-1.0, 2.0),
             ..one
         };
-        assert!(s.step(&[one, two], &[one, two], FP, 0.2, 0.8).is_empty());
-        assert!(!s.is_held(2));
+        assert!(s.step(200, &fleet(&[one, two]), &open()).is_empty());
+        assert!(!s.held.contains_key(&2));
+    }
+
+    #[test]
+    fn a_follower_standing_in_the_way_of_one_held_steps_aside_after_a_while() {
+        let mut s = Spacing::default();
+        let a = 60f64.to_radians();
+        let one = body(1, 0.7 * a.cos(), 0.7 * a.sin(), -90.0, 0.0);
+        let two = body(2, 0.0, 0.0, 0.0, 0.6);
+        s.step(0, &fleet(&[one, two]), &open());
+        let two = Body { v: 0.0, ..two };
+        assert_eq!(s.step(1000, &fleet(&[one, two]), &open()).len(), 1);
+        // Held 1.5 s: follower 1 is sent beyond follower 2's way, square to it.
+        let told = s.step(1500, &fleet(&[one, two]), &open());
+        assert_eq!(told.len(), 2);
+        let room = told[1];
+        assert!(room.id == 1 && room.order == Order::MakeRoom && room.began);
+        let centre = room.point - (room.point - one.position).normalize() * 0.2;
+        let reach = 2.0 * FP + KEEP_M;
+        assert!((centre.x - one.position.x).abs() < 1e-9);
+        assert!((centre.y - (reach + ROOM_M)).abs() < 1e-9, "{centre}");
+        // Not where a wall stands: they wait.
+        let mut s = Spacing::default();
+        let wall = Map::new(vec![crate::geometry::Obstacle::Circle {
+            center: DVec2::new(one.position.x, 1.1),
+            radius: 0.2,
+        }]);
+        let two = Body { v: 0.6, ..two };
+        s.step(0, &fleet(&[one, two]), &wall);
+        let two = Body { v: 0.0, ..two };
+        assert_eq!(s.step(1500, &fleet(&[one, two]), &wall).len(), 1);
     }
 
     #[test]
@@ -254,9 +394,9 @@ mod tests {
         // Side by side 1 m apart (0.4 m between footprints), both driving on.
         let one = body(1, 0.0, 1.0, 0.0, 0.5);
         let two = body(2, 0.0, 0.0, 0.0, 0.5);
-        assert!(s.step(&[one, two], &[one, two], FP, 0.2, 0.8).is_empty());
-        // One behind the other in a line, 1 m apart, at the same pace: room to stop.
+        assert!(s.step(0, &fleet(&[one, two]), &open()).is_empty());
+        // One behind the other in a line, 1 m apart: the ring's to keep.
         let one = body(1, 1.6, 0.0, 0.0, 0.5);
-        assert!(s.step(&[one, two], &[one, two], FP, 0.2, 0.8).is_empty());
+        assert!(s.step(100, &fleet(&[one, two]), &open()).is_empty());
     }
 }

@@ -163,8 +163,8 @@ impl Yielding {
         }
     }
 
-    /// Whether movers crowd the formation's way: [`CROWD_COUNT`] moving within
-    /// [`CROWD_NEAR_M`] of the leader, until none have for [`CROWD_CLEAR_S`]. The wide
+    /// Whether movers crowd the formation's way: `CROWD_COUNT` moving within
+    /// `CROWD_NEAR_M` of the leader, until none have for `CROWD_CLEAR_S`. The wide
     /// shape then gives way to the line: three robots abreast cross a crowd as a 4 m
     /// wall, in a line as one robot's width.
     pub fn crowded(&mut self, now_s: f64, leader: DVec2, movers: &[TrackView]) -> bool {
