@@ -826,16 +826,21 @@ impl Planner {
     /// marked blocked and the route planned again from `from`. A guess, as a stuck mark
     /// is: forgotten where it leaves no way (the route then stays as it was).
     pub fn avoid(&mut self, at: DVec2, radius: f64, from: DVec2, now_s: f64, map: &Map) {
-        let Some(routing) = self.routing.as_mut() else {
-            return;
-        };
         tracing::info!(
             x = at.x,
             y = at.y,
             radius,
             "movers hold the way: planning round them"
         );
-        routing.blocked.push((at, radius));
+        self.avoid_all(&[(at, radius)], from, now_s, map);
+    }
+
+    /// As [`Planner::avoid`], for several discs (centre, radius) at once: one plan.
+    pub fn avoid_all(&mut self, discs: &[(DVec2, f64)], from: DVec2, now_s: f64, map: &Map) {
+        let Some(routing) = self.routing.as_mut() else {
+            return;
+        };
+        routing.blocked.extend_from_slice(discs);
         routing.replans += 1;
         routing.route = None;
         self.note(PlannerEvent::Replanned);

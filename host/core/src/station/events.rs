@@ -69,6 +69,11 @@ pub enum StationEvent {
         robot: u16,
         at_ms: u32,
     },
+    /// A follower stepped aside for someone coming along a narrow way (`passing`).
+    FollowerStepsAside {
+        robot: u16,
+        at_ms: u32,
+    },
     /// A follower left behind is within 0.3 m of its reference again.
     FollowerCaughtUp {
         robot: u16,
@@ -107,6 +112,9 @@ impl StationEvent {
             E::FollowerDetour { robot, at_ms } => (*at_ms, "follower_detour".into(), Some(*robot)),
             E::FollowerGivesWay { robot, at_ms } => {
                 (*at_ms, "follower_gives_way".into(), Some(*robot))
+            }
+            E::FollowerStepsAside { robot, at_ms } => {
+                (*at_ms, "follower_steps_aside".into(), Some(*robot))
             }
             E::FollowerCaughtUp { robot, at_ms } => {
                 (*at_ms, "follower_caught_up".into(), Some(*robot))

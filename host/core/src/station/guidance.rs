@@ -118,6 +118,12 @@ impl Guidance {
         self.planner.avoid(at, radius, from, now_s, world);
     }
 
+    /// Someone comes the other way down a narrow way: the route keeps out of the discs
+    /// along their way, from `from`, if the map leaves room ([`super::passing`]).
+    pub fn keep_aside(&mut self, discs: &[(DVec2, f64)], from: DVec2, now_s: f64, world: &Map) {
+        self.planner.avoid_all(discs, from, now_s, world);
+    }
+
     /// Obstacles sensed on the way, and those forgotten since (`map`: what remains).
     pub fn sensed(&mut self, added: &[Obstacle], removed: &[Obstacle], map: &Map) {
         self.planner.remove_obstacles(removed, map);

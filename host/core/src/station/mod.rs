@@ -10,6 +10,7 @@
 //!   `operator`, a robot fault, the localization watch, a lost leader, a fleet still
 //!   assembling);
 //! - `guidance`: the planner and the formation manager (`look`, then `drive`);
+//! - `passing`: the route kept aside for people coming the other way down a narrow way;
 //! - `detour`: followers sent round what holds them; `spacing`: no robot driven into
 //!   another where its ring cannot see it;
 //! - `localize` with `fixes` and `fix_check`: fixes from the site's localization
@@ -25,6 +26,7 @@ mod fleet;
 mod guidance;
 mod localize;
 mod operator;
+mod passing;
 mod radio;
 mod smoothing;
 mod spacing;
@@ -46,6 +48,7 @@ pub use localize::NotForwarded;
 use localize::OutgoingFix;
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
+use passing::Passing;
 pub use smoothing::TurnRateSmoother;
 use spacing::Spacing;
 pub use yielding::{Yield, Yielding, VEHICLE_SPACE_M};
@@ -172,6 +175,8 @@ pub struct BaseStation {
     detours: Detours,
     /// Followers held short of another robot.
     spacing: Spacing,
+    /// People coming the other way down a narrow way, passed aside.
+    passing: Passing,
 }
 
 impl BaseStation {
@@ -215,6 +220,7 @@ impl BaseStation {
             last_command: (0.0, 0.0),
             detours: Detours::default(),
             spacing: Spacing::default(),
+            passing: Passing::default(),
         }
     }
 
@@ -360,6 +366,7 @@ impl BaseStation {
             self.broadcast_leader_state(&leader, (0.0, 0.0), 0.0, now_ms);
             return;
         }
+        self.keep_aside(leader.pose, &movers, now_s);
         let pace = self.yield_to_movers(&leader, &look, now_ms);
         let drive = self
             .guidance
@@ -512,6 +519,24 @@ impl BaseStation {
             self.guidance.avoid(at, radius, from, now_s, &self.world);
         }
         y.share
+    }
+
+    /// People coming the other way down a narrow way: the route keeps out of their way.
+    fn keep_aside(&mut self, leader: PlanPose, movers: &[TrackView], now_s: f64) {
+        let space = passing::Space {
+            footprint: self.guidance.formation().spec().footprint,
+            personal: self.cfg.yielding.personal_space_m,
+        };
+        let discs = self.passing.step(leader, movers, &self.world, space);
+        if discs.is_empty() {
+            return;
+        }
+        tracing::info!(
+            discs = discs.len(),
+            "someone comes the other way: the route keeps aside"
+        );
+        let from = leader.position;
+        self.guidance.keep_aside(&discs, from, now_s, &self.world);
     }
 
     /// No route: the lanes of people who stopped are given up (the robots then pass in

@@ -9,7 +9,7 @@ use protocol::{units, Address, Reject, MAX_WIRE};
 
 use super::fleet::{is_following, position, LeaderEstimate};
 use super::spacing::{self, Order};
-use super::{detour, BaseStation, Gate, StationEvent};
+use super::{detour, passing, BaseStation, Gate, StationEvent};
 use crate::planner::PlanPose;
 
 impl BaseStation {
@@ -166,13 +166,10 @@ impl BaseStation {
         let detours = self
             .detours
             .step(now_ms, &self.world, footprint, &followers, &robots);
-        let held = self.hold_apart(&followers, now_ms);
-        // A hold comes first: the way round may run into the robot it is held for.
-        let sent_round: Vec<_> = detours
-            .into_iter()
-            .filter(|(robot, _, _)| held.iter().all(|(h, _)| h != robot))
-            .collect();
-        for (robot, point, new) in sent_round {
+        // By rank: a hold or a step for another robot, then a step aside for someone
+        // passing, then a way round what the map shows.
+        let mut told = std::collections::BTreeMap::new();
+        for (robot, point, new) in detours {
             if new {
                 tracing::info!(
                     robot,
@@ -185,11 +182,47 @@ impl BaseStation {
                     at_ms: now_ms,
                 });
             }
+            told.insert(robot, point);
+        }
+        told.extend(self.step_aside(&followers, now_ms));
+        told.extend(self.hold_apart(&followers, now_ms));
+        for (robot, point) in told {
             self.send_detour(robot, point, now_ms);
         }
-        for (robot, point) in held {
-            self.send_detour(robot, point, now_ms);
+    }
+
+    /// The followers (of those following) stepping aside for someone coming along a
+    /// narrow way (`passing`), with the point each makes for.
+    fn step_aside(&mut self, followers: &[detour::Follower], now_ms: u32) -> Vec<(u16, DVec2)> {
+        let robots = self.fleet.bodies(now_ms);
+        let following: Vec<_> = robots
+            .iter()
+            .filter(|b| followers.iter().any(|f| f.id == b.id))
+            .copied()
+            .collect();
+        let movers: Vec<_> = self.tracker.moving(now_ms).collect();
+        let fleet = passing::Fleet {
+            followers: &following,
+            robots: &robots,
+            space: passing::Space {
+                footprint: self.guidance.formation().spec().footprint,
+                personal: self.cfg.yielding.personal_space_m,
+            },
+            offset: self.cfg.control_offset,
+        };
+        let stepping = self
+            .passing
+            .step_aside(now_ms, &fleet, &movers, &self.world);
+        for (robot, began) in stepping.iter().map(|s| (s.0, s.2)) {
+            if began {
+                tracing::info!(robot, "follower steps aside for someone passing");
+                self.events.push(StationEvent::FollowerStepsAside {
+                    robot,
+                    at_ms: now_ms,
+                });
+            }
         }
+        stepping.into_iter().map(|(id, p, _)| (id, p)).collect()
     }
 
     /// The followers (of those following) held short of another robot, and those stepping

@@ -1,0 +1,396 @@
+//! Keeping to the side for people coming the other way. In a narrow way (an alley, a
+//! passage between parked vans) someone walking toward the fleet passes the robots at
+//! whatever offset their way has: an oblivious walker 0.6 m off the middle of a 3 m alley
+//! grazed the line of robots standing in it, and every such walker came within 0.3 m of
+//! a robot (seeds 301–332). The scanner sees them from far off, long before the yielding
+//! layer holds the leader for them; the route then keeps out of their way, on the far side
+//! of the narrow way, with the personal space where the map leaves room for it (as
+//! someone pushing a cart does). The followers of the line drive the leader's path, so
+//! the whole line is aside by the time they meet.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use glam::DVec2;
+
+use super::spacing::Body;
+use crate::map::Map;
+use crate::planner::PlanPose;
+use crate::tracking::TrackView;
+
+/// Someone slower than this is not coming along a way, m/s.
+const WALKING: f64 = 0.5;
+/// Their way is "the other way" within this of the leader's heading, reversed, degrees.
+const ONCOMING_DEG: f64 = 30.0;
+/// And they are ahead within this of the leader's heading, degrees.
+const AHEAD_DEG: f64 = 30.0;
+/// Nearer than this the leader cannot get aside in time any more; the yielding layer
+/// holds it for them, m.
+const NEAREST_M: f64 = 4.0;
+/// The route leaves the leader's way this far ahead of it (it cannot step sideways), m.
+const STEER_M: f64 = 2.0;
+/// A way is narrow where it leaves less than this on each side of some point between the
+/// leader and them, m: wider, there is room to pass without a plan.
+const NARROW_M: f64 = 3.0;
+/// Discs along their way, this far apart, m.
+const STEP_M: f64 = 0.5;
+/// A follower steps aside for someone who will be abreast of it within this, s.
+const SOON_S: f64 = 5.0;
+/// Places to step to are tried this far apart, m.
+const STEP_ASIDE_M: f64 = 0.05;
+/// A step shorter than this is not worth taking, m.
+const LEAST_STEP_M: f64 = 0.1;
+/// What the place stepped to keeps from the map beyond the footprint, m.
+const WALL_MARGIN_M: f64 = 0.1;
+/// And from the other robots, beyond both footprints, m.
+const ROBOT_MARGIN_M: f64 = 0.1;
+/// A follower this close to its place aside is there, m.
+const THERE_M: f64 = 0.1;
+/// A step aside ends after this, whatever happens, ms.
+const ASIDE_MS: u32 = 10_000;
+
+/// What the fleet keeps.
+#[derive(Debug, Clone, Copy)]
+pub struct Space {
+    pub footprint: f64,
+    /// From a person's footprint, when passing, m.
+    pub personal: f64,
+}
+
+/// The people already passed aside, by track, and the followers stepping aside for them.
+#[derive(Debug, Default)]
+pub struct Passing {
+    planned: BTreeSet<u32>,
+    aside: BTreeMap<u16, Aside>,
+}
+
+/// A follower stepping aside: where its centre goes, for whom, since when, and the way it
+/// faced then (along the narrow way).
+#[derive(Debug, Clone, Copy)]
+struct Aside {
+    to: DVec2,
+    heading: DVec2,
+    track: u32,
+    since_ms: u32,
+}
+
+impl Passing {
+    /// One period: for each mover newly seen coming the other way down a narrow way, whose
+    /// way passes the leader within the personal space, the discs (centre, radius) along
+    /// that way, from them to `STEER_M` ahead of the leader, that the route should keep
+    /// out of. Empty where there are none.
+    pub fn step(
+        &mut self,
+        leader: PlanPose,
+        movers: &[TrackView],
+        map: &Map,
+        space: Space,
+    ) -> Vec<(DVec2, f64)> {
+        self.planned.retain(|id| movers.iter().any(|m| m.id == *id));
+        let mut discs = Vec::new();
+        for m in movers {
+            if self.planned.contains(&m.id) {
+                continue;
+            }
+            let Some(along) = oncoming(leader, m, map, space) else {
+                continue;
+            };
+            self.planned.insert(m.id);
+            // Along the narrow way, as the leader faces it: a filter's heading is off by
+            // several degrees, enough to bend the discs across a 3 m alley.
+            let way = -DVec2::from_angle(leader.heading);
+            let radius = m.radius + space.personal;
+            let steps = ((along - STEER_M) / STEP_M).floor().max(0.0) as usize;
+            discs.extend((0..=steps).map(|k| (m.position + way * (k as f64 * STEP_M), radius)));
+        }
+        discs
+    }
+
+    /// One period: each follower in a narrow way whose place someone coming along it will
+    /// pass within the personal space in the next `SOON_S` steps aside, square to their
+    /// way, as far as the map and the other robots let it (at least `LEAST_STEP_M`), until
+    /// they are past it. Returns each follower stepping aside, the point for its control
+    /// point (`offset` ahead of its centre: the point lies the step's way on) and whether
+    /// the step just began.
+    pub fn step_aside(
+        &mut self,
+        now_ms: u32,
+        fleet: &Fleet,
+        movers: &[TrackView],
+        map: &Map,
+    ) -> Vec<(u16, DVec2, bool)> {
+        let mut aside = BTreeMap::new();
+        for f in fleet.followers {
+            let kept = self.aside.get(&f.id).copied().filter(|a| {
+                now_ms.wrapping_sub(a.since_ms) < ASIDE_MS
+                    && movers
+                        .iter()
+                        .find(|m| m.id == a.track)
+                        .is_some_and(|m| coming(f.position, a.heading, m).is_some())
+            });
+            let step = kept.or_else(|| {
+                movers.iter().find_map(|m| {
+                    let to = step_for(f, m, fleet, map)?;
+                    Some(Aside {
+                        to,
+                        heading: DVec2::from_angle(f.heading),
+                        track: m.id,
+                        since_ms: now_ms,
+                    })
+                })
+            });
+            if let Some(a) = step {
+                aside.insert(f.id, a);
+            }
+        }
+        let before = std::mem::replace(&mut self.aside, aside);
+        self.aside
+            .iter()
+            .filter_map(|(id, a)| {
+                let f = fleet.followers.iter().find(|f| f.id == *id)?;
+                // There (or as good as): it holds its place, facing as it stands.
+                let dir = if a.to.distance(f.position) > THERE_M {
+                    (a.to - f.position).normalize()
+                } else {
+                    DVec2::from_angle(f.heading)
+                };
+                let began = !before.contains_key(id);
+                Some((*id, a.to + dir * fleet.offset, began))
+            })
+            .collect()
+    }
+}
+
+/// What [`Passing::step_aside`] needs to know of the fleet this period.
+#[derive(Debug, Clone, Copy)]
+pub struct Fleet<'a> {
+    pub followers: &'a [Body],
+    /// Every robot, followers included.
+    pub robots: &'a [Body],
+    pub space: Space,
+    /// How far ahead of a follower's centre its control point is, m.
+    pub offset: f64,
+}
+
+/// How far `m` still walks before it is abreast of `at`, if it comes against `heading` (a
+/// follower's, as it was when it stepped aside) and gets there within `SOON_S`.
+fn coming(at: DVec2, heading: DVec2, m: &TrackView) -> Option<f64> {
+    if !against(m, heading) {
+        return None;
+    }
+    let along = (m.position - at).dot(heading);
+    (along > 0.0 && along < m.velocity.length() * SOON_S).then_some(along)
+}
+
+/// Where follower `f` steps to for `m`, if `m` will pass it too close down a narrow way and
+/// the map and the other robots leave a step worth taking.
+fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, map: &Map) -> Option<DVec2> {
+    let heading = DVec2::from_angle(f.heading);
+    coming(f.position, heading, m)?;
+    let space = fleet.space;
+    let way = -heading;
+    let from = f.position - m.position;
+    let offset = way.perp_dot(from);
+    let want = space.footprint + m.radius + space.personal;
+    if offset.abs() >= want || map.clearance(f.position, NARROW_M) >= NARROW_M {
+        return None;
+    }
+    let out = way.perp() * if offset >= 0.0 { 1.0 } else { -1.0 };
+    let reach = 2.0 * space.footprint + ROBOT_MARGIN_M;
+    let need = space.footprint + WALL_MARGIN_M;
+    let fits = |p: DVec2| {
+        map.clearance(p, need) >= need
+            && fleet
+                .robots
+                .iter()
+                .filter(|r| r.id != f.id)
+                .all(|r| r.position.distance(p) >= reach)
+    };
+    // (Less a hair, so that 0.75 m is 15 steps, not 16.)
+    let steps = ((want - offset.abs()) / STEP_ASIDE_M - 1e-6).ceil() as usize;
+    let reached = (1..=steps)
+        .map(|k| f.position + out * (k as f64 * STEP_ASIDE_M))
+        .take_while(|p| fits(*p))
+        .last()?;
+    (reached.distance(f.position) >= LEAST_STEP_M).then_some(reached)
+}
+
+/// Whether `m` walks against `heading`, within `ONCOMING_DEG`.
+fn against(m: &TrackView, heading: DVec2) -> bool {
+    let speed = m.velocity.length();
+    speed >= WALKING && (m.velocity / speed).dot(-heading) >= ONCOMING_DEG.to_radians().cos()
+}
+
+/// How far `m` walks before it is abreast of the leader, if it comes the other way down a
+/// narrow way, ahead, and would pass within the personal space.
+fn oncoming(leader: PlanPose, m: &TrackView, map: &Map, space: Space) -> Option<f64> {
+    let speed = m.velocity.length();
+    if speed < WALKING {
+        return None;
+    }
+    let heading = DVec2::from_angle(leader.heading);
+    if !against(m, heading) {
+        return None;
+    }
+    let way = -heading;
+    let to = m.position - leader.position;
+    let distance = to.length();
+    if distance < NEAREST_M || to.dot(heading) < distance * AHEAD_DEG.to_radians().cos() {
+        return None;
+    }
+    // Their way passes the leader this far to the side.
+    let back = leader.position - m.position;
+    let offset = way.perp_dot(back).abs();
+    if offset >= space.footprint + m.radius + space.personal {
+        return None;
+    }
+    let steps = (distance / STEP_M).ceil() as usize;
+    let narrow = (0..=steps)
+        .map(|k| leader.position + to * (k as f64 / steps as f64))
+        .any(|p| map.clearance(p, NARROW_M) < NARROW_M);
+    narrow.then(|| back.dot(way))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Obstacle;
+    use crate::tracking::Motion;
+
+    const SPACE: Space = Space {
+        footprint: 0.3,
+        personal: 0.8,
+    };
+
+    fn block(x0: f64, y0: f64, x1: f64, y1: f64) -> Obstacle {
+        Obstacle::Polygon {
+            points: vec![
+                DVec2::new(x0, y0),
+                DVec2::new(x1, y0),
+                DVec2::new(x1, y1),
+                DVec2::new(x0, y1),
+            ],
+        }
+    }
+
+    /// A 3 m alley from x = 15 to 35.
+    fn alley() -> Map {
+        Map::new(vec![
+            block(15.0, 1.5, 35.0, 12.0),
+            block(15.0, -12.0, 35.0, -1.5),
+        ])
+    }
+
+    fn walker(id: u32, x: f64, y: f64, vx: f64, vy: f64) -> TrackView {
+        TrackView {
+            id,
+            position: DVec2::new(x, y),
+            velocity: DVec2::new(vx, vy),
+            position_sigma: 0.05,
+            velocity_sigma: 0.1,
+            radius: 0.25,
+            motion: Motion::Moving,
+            person: true,
+        }
+    }
+
+    const LEADER: PlanPose = PlanPose {
+        position: DVec2::new(12.0, 0.0),
+        heading: 0.0,
+    };
+
+    #[test]
+    fn someone_coming_down_the_alley_is_passed_aside_once() {
+        let mut p = Passing::default();
+        let w = walker(7, 32.0, 0.6, -1.2, 0.0);
+        let discs = p.step(LEADER, &[w], &alley(), SPACE);
+        // From them to 2 m ahead of the leader, along their way, with the personal space.
+        assert_eq!(discs.first(), Some(&(DVec2::new(32.0, 0.6), 1.05)));
+        let last = discs.last().unwrap().0;
+        assert!((last.x - 14.0).abs() <= STEP_M && last.y == 0.6, "{last}");
+        // Planned once, not every period.
+        assert!(p.step(LEADER, &[w], &alley(), SPACE).is_empty());
+    }
+
+    #[test]
+    fn nobody_is_passed_aside_in_the_open_or_going_the_same_way_or_wide_of_the_fleet() {
+        let mut p = Passing::default();
+        let open = Map::new(Vec::new());
+        assert!(p
+            .step(LEADER, &[walker(1, 32.0, 0.6, -1.2, 0.0)], &open, SPACE)
+            .is_empty());
+        let alley = alley();
+        let same_way = walker(2, 32.0, 0.6, 1.2, 0.0);
+        let crossing = walker(3, 32.0, 0.6, 0.0, 1.2);
+        let wide = walker(4, 32.0, 1.4, -1.2, 0.0);
+        let near = walker(5, 15.0, 0.6, -1.2, 0.0);
+        let standing = walker(6, 32.0, 0.6, -0.1, 0.0);
+        for w in [same_way, crossing, wide, near, standing] {
+            assert!(p.step(LEADER, &[w], &alley, SPACE).is_empty(), "{}", w.id);
+        }
+    }
+
+    fn follower(id: u16, x: f64, y: f64) -> Body {
+        Body {
+            id,
+            position: DVec2::new(x, y),
+            heading: 0.0,
+            v: 0.4,
+        }
+    }
+
+    #[test]
+    fn a_follower_steps_to_the_far_side_of_the_alley_until_they_have_passed() {
+        let mut p = Passing::default();
+        let f = [follower(1, 20.0, 0.0)];
+        let fleet = Fleet {
+            followers: &f,
+            robots: &f,
+            space: SPACE,
+            offset: 0.2,
+        };
+        let w = walker(7, 25.0, 0.6, -1.2, 0.0);
+        // 0.6 m off its way, 4 s off: it steps 0.75 m to the other side (0.3 + 0.25 + 0.8
+        // from their way), its control point led that way.
+        let told = p.step_aside(0, &fleet, &[w], &alley());
+        assert_eq!(told.len(), 1);
+        let (id, point, began) = told[0];
+        assert!(id == 1 && began);
+        assert!((point - DVec2::new(20.0, -0.95)).length() < 1e-9, "{point}");
+        assert!(!p.step_aside(100, &fleet, &[w], &alley())[0].2);
+        // Past it: back to its slot.
+        let past = walker(7, 19.0, 0.6, -1.2, 0.0);
+        assert!(p.step_aside(200, &fleet, &[past], &alley()).is_empty());
+    }
+
+    #[test]
+    fn a_follower_steps_only_as_far_as_the_wall_and_the_robots_let_it() {
+        let mut p = Passing::default();
+        let w = walker(7, 25.0, 0.9, -1.2, 0.0);
+        // Near the wall already: 0.05 m is not a step worth taking.
+        let f = [follower(1, 20.0, -1.05)];
+        let robots = f;
+        let fleet = Fleet {
+            followers: &f,
+            robots: &robots,
+            space: SPACE,
+            offset: 0.2,
+        };
+        assert!(p.step_aside(0, &fleet, &[w], &alley()).is_empty());
+        // A robot 0.9 m to its side: it steps 0.2 m, to 0.7 m from it.
+        let f = [follower(1, 20.0, 0.0)];
+        let robots = [f[0], follower(2, 20.0, -0.9)];
+        let fleet = Fleet {
+            followers: &f,
+            robots: &robots,
+            space: SPACE,
+            offset: 0.2,
+        };
+        let (_, point, _) = p.step_aside(0, &fleet, &[w], &alley())[0];
+        assert!((point - DVec2::new(20.0, -0.4)).length() < 1e-9, "{point}");
+        // Nobody steps aside in the open.
+        let mut p = Passing::default();
+        assert!(p
+            .step_aside(0, &fleet, &[w], &Map::new(Vec::new()))
+            .is_empty());
+    }
+}
