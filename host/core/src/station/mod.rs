@@ -527,7 +527,7 @@ impl BaseStation {
             footprint: self.guidance.formation().spec().footprint,
             personal: self.cfg.yielding.personal_space_m,
         };
-        let discs = self.passing.step(leader, movers, &self.world, space);
+        let discs = self.passing.step(leader, movers, &self.cfg.map, space);
         if discs.is_empty() {
             return;
         }

@@ -28,9 +28,9 @@ const AHEAD_DEG: f64 = 30.0;
 const NEAREST_M: f64 = 4.0;
 /// The route leaves the leader's way this far ahead of it (it cannot step sideways), m.
 const STEER_M: f64 = 2.0;
-/// A way is narrow where it leaves less than this on each side of some point between the
-/// leader and them, m: wider, there is room to pass without a plan.
-const NARROW_M: f64 = 3.0;
+/// A way is narrow where it is less than this wide across the robot's heading (the map's
+/// walls and kerbs to either side), m: wider, there is room to pass without a plan.
+const NARROW_M: f64 = 5.0;
 /// Discs along their way, this far apart, m.
 const STEP_M: f64 = 0.5;
 /// A follower steps aside for someone who will be abreast of it within this, s.
@@ -74,7 +74,8 @@ struct Aside {
 }
 
 impl Passing {
-    /// One period: for each mover newly seen coming the other way down a narrow way, whose
+    /// One period: for each mover newly seen coming the other way down a narrow way (on the
+    /// `site`'s map: what was marked, a crowd standing, makes no alley), whose
     /// way passes the leader within the personal space, the discs (centre, radius) along
     /// that way, from them to `STEER_M` ahead of the leader, that the route should keep
     /// out of. Empty where there are none.
@@ -82,7 +83,7 @@ impl Passing {
         &mut self,
         leader: PlanPose,
         movers: &[TrackView],
-        map: &Map,
+        site: &Map,
         space: Space,
     ) -> Vec<(DVec2, f64)> {
         self.planned.retain(|id| movers.iter().any(|m| m.id == *id));
@@ -91,7 +92,7 @@ impl Passing {
             if self.planned.contains(&m.id) {
                 continue;
             }
-            let Some(along) = oncoming(leader, m, map, space) else {
+            let Some(along) = oncoming(leader, m, site, space) else {
                 continue;
             };
             self.planned.insert(m.id);
@@ -116,7 +117,7 @@ impl Passing {
         now_ms: u32,
         fleet: &Fleet,
         movers: &[TrackView],
-        map: &Map,
+        maps: Maps,
     ) -> Vec<(u16, DVec2, bool)> {
         let mut aside = BTreeMap::new();
         for f in fleet.followers {
@@ -129,7 +130,7 @@ impl Passing {
             });
             let step = kept.or_else(|| {
                 movers.iter().find_map(|m| {
-                    let to = step_for(f, m, fleet, map)?;
+                    let to = step_for(f, m, fleet, maps)?;
                     Some(Aside {
                         to,
                         heading: DVec2::from_angle(f.heading),
@@ -160,6 +161,16 @@ impl Passing {
     }
 }
 
+/// The maps a step aside is judged on.
+#[derive(Debug, Clone, Copy)]
+pub struct Maps<'a> {
+    /// The site's: where a way is narrow (what was marked, a crowd standing, makes no
+    /// alley).
+    pub site: &'a Map,
+    /// With what was sensed: where a robot may step.
+    pub world: &'a Map,
+}
+
 /// What [`Passing::step_aside`] needs to know of the fleet this period.
 #[derive(Debug, Clone, Copy)]
 pub struct Fleet<'a> {
@@ -183,7 +194,7 @@ fn coming(at: DVec2, heading: DVec2, m: &TrackView) -> Option<f64> {
 
 /// Where follower `f` steps to for `m`, if `m` will pass it too close down a narrow way and
 /// the map and the other robots leave a step worth taking.
-fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, map: &Map) -> Option<DVec2> {
+fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, maps: Maps) -> Option<DVec2> {
     let heading = DVec2::from_angle(f.heading);
     coming(f.position, heading, m)?;
     let space = fleet.space;
@@ -191,14 +202,14 @@ fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, map: &Map) -> Option<DVec2> 
     let from = f.position - m.position;
     let offset = way.perp_dot(from);
     let want = space.footprint + m.radius + space.personal;
-    if offset.abs() >= want || map.clearance(f.position, NARROW_M) >= NARROW_M {
+    if offset.abs() >= want || !narrow(maps.site, f.position, heading) {
         return None;
     }
     let out = way.perp() * if offset >= 0.0 { 1.0 } else { -1.0 };
     let reach = 2.0 * space.footprint + ROBOT_MARGIN_M;
     let need = space.footprint + WALL_MARGIN_M;
     let fits = |p: DVec2| {
-        map.clearance(p, need) >= need
+        maps.world.clearance(p, need) >= need
             && fleet
                 .robots
                 .iter()
@@ -214,6 +225,12 @@ fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, map: &Map) -> Option<DVec2> 
     (reached.distance(f.position) >= LEAST_STEP_M).then_some(reached)
 }
 
+/// Whether the way through `at` along `heading` is narrow on the `site`'s map.
+fn narrow(site: &Map, at: DVec2, heading: DVec2) -> bool {
+    let side = heading.perp();
+    site.ray_cast(at, side, NARROW_M) + site.ray_cast(at, -side, NARROW_M) < NARROW_M
+}
+
 /// Whether `m` walks against `heading`, within `ONCOMING_DEG`.
 fn against(m: &TrackView, heading: DVec2) -> bool {
     let speed = m.velocity.length();
@@ -222,7 +239,7 @@ fn against(m: &TrackView, heading: DVec2) -> bool {
 
 /// How far `m` walks before it is abreast of the leader, if it comes the other way down a
 /// narrow way, ahead, and would pass within the personal space.
-fn oncoming(leader: PlanPose, m: &TrackView, map: &Map, space: Space) -> Option<f64> {
+fn oncoming(leader: PlanPose, m: &TrackView, site: &Map, space: Space) -> Option<f64> {
     let speed = m.velocity.length();
     if speed < WALKING {
         return None;
@@ -244,10 +261,10 @@ fn oncoming(leader: PlanPose, m: &TrackView, map: &Map, space: Space) -> Option<
         return None;
     }
     let steps = (distance / STEP_M).ceil() as usize;
-    let narrow = (0..=steps)
+    let shared = (0..=steps)
         .map(|k| leader.position + to * (k as f64 / steps as f64))
-        .any(|p| map.clearance(p, NARROW_M) < NARROW_M);
-    narrow.then(|| back.dot(way))
+        .any(|p| narrow(site, p, heading));
+    shared.then(|| back.dot(way))
 }
 
 #[cfg(test)]
@@ -329,6 +346,13 @@ mod tests {
         }
     }
 
+    fn both(map: &Map) -> Maps<'_> {
+        Maps {
+            site: map,
+            world: map,
+        }
+    }
+
     fn follower(id: u16, x: f64, y: f64) -> Body {
         Body {
             id,
@@ -351,15 +375,17 @@ mod tests {
         let w = walker(7, 25.0, 0.6, -1.2, 0.0);
         // 0.6 m off its way, 4 s off: it steps 0.75 m to the other side (0.3 + 0.25 + 0.8
         // from their way), its control point led that way.
-        let told = p.step_aside(0, &fleet, &[w], &alley());
+        let told = p.step_aside(0, &fleet, &[w], both(&alley()));
         assert_eq!(told.len(), 1);
         let (id, point, began) = told[0];
         assert!(id == 1 && began);
         assert!((point - DVec2::new(20.0, -0.95)).length() < 1e-9, "{point}");
-        assert!(!p.step_aside(100, &fleet, &[w], &alley())[0].2);
+        assert!(!p.step_aside(100, &fleet, &[w], both(&alley()))[0].2);
         // Past it: back to its slot.
         let past = walker(7, 19.0, 0.6, -1.2, 0.0);
-        assert!(p.step_aside(200, &fleet, &[past], &alley()).is_empty());
+        assert!(p
+            .step_aside(200, &fleet, &[past], both(&alley()))
+            .is_empty());
     }
 
     #[test]
@@ -375,7 +401,7 @@ mod tests {
             space: SPACE,
             offset: 0.2,
         };
-        assert!(p.step_aside(0, &fleet, &[w], &alley()).is_empty());
+        assert!(p.step_aside(0, &fleet, &[w], both(&alley())).is_empty());
         // A robot 0.9 m to its side: it steps 0.2 m, to 0.7 m from it.
         let f = [follower(1, 20.0, 0.0)];
         let robots = [f[0], follower(2, 20.0, -0.9)];
@@ -385,12 +411,19 @@ mod tests {
             space: SPACE,
             offset: 0.2,
         };
-        let (_, point, _) = p.step_aside(0, &fleet, &[w], &alley())[0];
+        let (_, point, _) = p.step_aside(0, &fleet, &[w], both(&alley()))[0];
         assert!((point - DVec2::new(20.0, -0.4)).length() < 1e-9, "{point}");
-        // Nobody steps aside in the open.
+        // Nobody steps aside in the open, whatever was marked there (a crowd standing
+        // makes no alley).
         let mut p = Passing::default();
+        let open = Map::new(Vec::new());
+        let marked = Maps {
+            site: &open,
+            world: &alley(),
+        };
+        assert!(p.step_aside(0, &fleet, &[w], marked).is_empty());
         assert!(p
-            .step_aside(0, &fleet, &[w], &Map::new(Vec::new()))
+            .step_aside(0, &fleet, &[w], both(&Map::new(Vec::new())))
             .is_empty());
     }
 }

@@ -210,9 +210,11 @@ impl BaseStation {
             },
             offset: self.cfg.control_offset,
         };
-        let stepping = self
-            .passing
-            .step_aside(now_ms, &fleet, &movers, &self.world);
+        let maps = passing::Maps {
+            site: &self.cfg.map,
+            world: &self.world,
+        };
+        let stepping = self.passing.step_aside(now_ms, &fleet, &movers, maps);
         for (robot, began) in stepping.iter().map(|s| (s.0, s.2)) {
             if began {
                 tracing::info!(robot, "follower steps aside for someone passing");
