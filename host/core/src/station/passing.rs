@@ -31,6 +31,8 @@ const STEER_M: f64 = 2.0;
 /// A way is narrow where it is less than this wide across the robot's heading (the map's
 /// walls and kerbs to either side), m: wider, there is room to pass without a plan.
 const NARROW_M: f64 = 5.0;
+/// Over this much of its length, m.
+const WAY_M: f64 = 3.0;
 /// Discs along their way, this far apart, m.
 const STEP_M: f64 = 0.5;
 /// A follower steps aside for someone who will be abreast of it within this, s.
@@ -225,10 +227,17 @@ fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, maps: Maps) -> Option<DVec2>
     (reached.distance(f.position) >= LEAST_STEP_M).then_some(reached)
 }
 
-/// Whether the way through `at` along `heading` is narrow on the `site`'s map.
+/// Whether the way through `at` along `heading` is narrow on the `site`'s map: under
+/// `NARROW_M` across at most points of the `WAY_M` around `at` (a gap between two benches
+/// is no alley).
 fn narrow(site: &Map, at: DVec2, heading: DVec2) -> bool {
     let side = heading.perp();
-    site.ray_cast(at, side, NARROW_M) + site.ray_cast(at, -side, NARROW_M) < NARROW_M
+    let across = |p: DVec2| site.ray_cast(p, side, NARROW_M) + site.ray_cast(p, -side, NARROW_M);
+    let half = (WAY_M / (2.0 * STEP_M)).round() as i32;
+    let narrow = (-half..=half)
+        .filter(|k| across(at + heading * (*k as f64 * STEP_M)) < NARROW_M)
+        .count();
+    narrow as i32 > half + half / 2
 }
 
 /// Whether `m` walks against `heading`, within `ONCOMING_DEG`.
