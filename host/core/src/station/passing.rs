@@ -108,11 +108,13 @@ impl Passing {
         discs
     }
 
-    /// One period: each follower in a narrow way whose place someone coming along it will
-    /// pass within the personal space in the next `SOON_S` steps aside, square to their
-    /// way, as far as the map and the other robots let it (at least `LEAST_STEP_M`), until
-    /// they are past it. Returns each follower stepping aside, the point for its control
-    /// point (`offset` ahead of its centre: the point lies the step's way on) and whether
+    /// One period: each follower whose place someone will pass within the personal space
+    /// in the next `SOON_S`, coming along a narrow way (where it stands or between them:
+    /// the end of the line may still be outside the alley), steps aside, square to their
+    /// way, as far as the map and the other robots let it (at least `LEAST_STEP_M`),
+    /// until they are past it. Returns each follower stepping aside, the point for its
+    /// control point (`offset` ahead of its centre: the point lies the step's way on) and
+    /// whether
     /// the step just began.
     pub fn step_aside(
         &mut self,
@@ -204,7 +206,7 @@ fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, maps: Maps) -> Option<DVec2>
     let from = f.position - m.position;
     let offset = way.perp_dot(from);
     let want = space.footprint + m.radius + space.personal;
-    if offset.abs() >= want || !narrow(maps.site, f.position, heading) {
+    if offset.abs() >= want || !narrow_between(maps.site, f.position, m.position, heading) {
         return None;
     }
     let out = way.perp() * if offset >= 0.0 { 1.0 } else { -1.0 };
@@ -269,11 +271,15 @@ fn oncoming(leader: PlanPose, m: &TrackView, site: &Map, space: Space) -> Option
     if offset >= space.footprint + m.radius + space.personal {
         return None;
     }
-    let steps = (distance / STEP_M).ceil() as usize;
-    let shared = (0..=steps)
-        .map(|k| leader.position + to * (k as f64 / steps as f64))
-        .any(|p| narrow(site, p, heading));
-    shared.then(|| back.dot(way))
+    narrow_between(site, leader.position, m.position, heading).then(|| back.dot(way))
+}
+
+/// Whether the way from `a` to `b`, along `heading`, is narrow somewhere.
+fn narrow_between(site: &Map, a: DVec2, b: DVec2, heading: DVec2) -> bool {
+    let steps = (a.distance(b) / STEP_M).ceil().max(1.0) as usize;
+    (0..=steps)
+        .map(|k| a + (b - a) * (k as f64 / steps as f64))
+        .any(|p| narrow(site, p, heading))
 }
 
 #[cfg(test)]
