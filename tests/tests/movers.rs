@@ -213,6 +213,11 @@ fn a_person_crossing_in_front() {
     }
 }
 
+/// The robots keep aside in the alley (`station/passing.rs`): no robot within this of the
+/// walker's footprint, m. Standing in the middle, they were passed at 0.002–0.29 m
+/// (seeds 1–4 and 301–332); keeping aside, at 0.38–0.93 m.
+const ALLEY_KEPT_M: f64 = 0.3;
+
 #[test]
 fn a_person_walking_against_the_formation_in_a_3m_alley() {
     for social in [true, false] {
@@ -220,6 +225,19 @@ fn a_person_walking_against_the_formation_in_a_3m_alley() {
         let (_, o) = suite(&name, |s| gen::oncoming_alley(s, social));
         no_contacts(&name, &o);
         all_arrive(&name, &o);
+        let close: Vec<String> = o
+            .iter()
+            .filter(|o| {
+                let least = o.report.movers.min_person_clearance_m;
+                least.is_none_or(|c| c < ALLEY_KEPT_M)
+            })
+            .map(|o| format!("{}\n    {}", o.line(), o.path))
+            .collect();
+        assert!(
+            close.is_empty(),
+            "{name}: a robot within {ALLEY_KEPT_M} m of the walker:\n{}",
+            close.join("\n")
+        );
     }
 }
 
@@ -326,9 +344,10 @@ fn movers_among_unmapped_obstacles() {
 }
 
 #[test]
-#[ignore = "issue 29's bound is not met yet: a standing robot is walked into on 1 of 4 \
-            oncoming-oblivious worlds (a graze: the walker's line passes 0.60 m from the \
-            line of robots in the 3 m alley); docs/results.md#movers. Run with --ignored"]
+#[ignore = "issue 29's bound is not met yet: none of seeds 1-4, but 2 of the 128 worlds \
+            of seeds 301-332 (1.6 %: a crossing walker judged moving 2.3 s before the \
+            touch, a person who stopped and set off again); docs/results.md#movers. Run \
+            with --ignored"]
 fn oblivious_walkers_rarely_walk_into_a_standing_robot() {
     let mut all = Vec::new();
     all.extend(suite("crossing-oblivious", |s| gen::crossing(s, false)).1);
