@@ -70,6 +70,13 @@ fn point_in_polygon(p: DVec2, pts: &[DVec2]) -> bool {
 }
 
 impl Obstacle {
+    /// An axis-aligned block from its lower-left to its upper-right corner.
+    pub fn rectangle(lo: DVec2, hi: DVec2) -> Obstacle {
+        Obstacle::Polygon {
+            points: vec![lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)],
+        }
+    }
+
     pub fn nearest(&self, p: DVec2) -> Nearest {
         match self {
             Obstacle::Circle { center, radius } => {

@@ -42,14 +42,7 @@ fn at_their_slots(fm: &FormationManager, leader: PlanPose) -> Vec<Option<Followe
 }
 
 fn block(x0: f64, y0: f64, x1: f64, y1: f64) -> Obstacle {
-    Obstacle::Polygon {
-        points: vec![
-            DVec2::new(x0, y0),
-            DVec2::new(x1, y0),
-            DVec2::new(x1, y1),
-            DVec2::new(x0, y1),
-        ],
-    }
+    Obstacle::rectangle(DVec2::new(x0, y0), DVec2::new(x1, y1))
 }
 
 /// A wall across y with a gap of `width` centred on y = 10, x ∈ [12, 18].

@@ -1042,14 +1042,7 @@ mod tests {
     use crate::geometry::Obstacle;
 
     fn rect(lo: (f64, f64), hi: (f64, f64)) -> Obstacle {
-        Obstacle::Polygon {
-            points: vec![
-                DVec2::new(lo.0, lo.1),
-                DVec2::new(hi.0, lo.1),
-                DVec2::new(hi.0, hi.1),
-                DVec2::new(lo.0, hi.1),
-            ],
-        }
+        Obstacle::rectangle(DVec2::new(lo.0, lo.1), DVec2::new(hi.0, hi.1))
     }
 
     fn params() -> RouteParams {

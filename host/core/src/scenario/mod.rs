@@ -333,12 +333,7 @@ impl ObstacleSpec {
                     .map(|p| DVec2::new(p[0], p[1]))
                     .collect(),
             },
-            ObstacleKind::Rectangle => {
-                let (lo, hi) = (v(self.min), v(self.max));
-                Obstacle::Polygon {
-                    points: vec![lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)],
-                }
-            }
+            ObstacleKind::Rectangle => Obstacle::rectangle(v(self.min), v(self.max)),
         }
     }
 }

@@ -293,22 +293,11 @@ mod tests {
         personal: 0.8,
     };
 
-    fn block(x0: f64, y0: f64, x1: f64, y1: f64) -> Obstacle {
-        Obstacle::Polygon {
-            points: vec![
-                DVec2::new(x0, y0),
-                DVec2::new(x1, y0),
-                DVec2::new(x1, y1),
-                DVec2::new(x0, y1),
-            ],
-        }
-    }
-
     /// A 3 m alley from x = 15 to 35.
     fn alley() -> Map {
         Map::new(vec![
-            block(15.0, 1.5, 35.0, 12.0),
-            block(15.0, -12.0, 35.0, -1.5),
+            Obstacle::rectangle(DVec2::new(15.0, 1.5), DVec2::new(35.0, 12.0)),
+            Obstacle::rectangle(DVec2::new(15.0, -12.0), DVec2::new(35.0, -1.5)),
         ])
     }
 

@@ -184,26 +184,31 @@ impl BaseStation {
             }
             told.insert(robot, point);
         }
-        told.extend(self.step_aside(&followers, now_ms));
-        told.extend(self.hold_apart(&followers, now_ms));
-        for (robot, point) in told {
-            self.send_detour(robot, point, now_ms);
-        }
-    }
-
-    /// The followers (of those following) stepping aside for someone coming along a
-    /// narrow way (`passing`), with the point each makes for.
-    fn step_aside(&mut self, followers: &[detour::Follower], now_ms: u32) -> Vec<(u16, DVec2)> {
         let robots = self.fleet.bodies(now_ms);
         let following: Vec<_> = robots
             .iter()
             .filter(|b| followers.iter().any(|f| f.id == b.id))
             .copied()
             .collect();
+        told.extend(self.step_aside(&following, &robots, now_ms));
+        told.extend(self.hold_apart(&following, &robots, now_ms));
+        for (robot, point) in told {
+            self.send_detour(robot, point, now_ms);
+        }
+    }
+
+    /// The followers (`following`: those following; `robots`: every robot) stepping aside
+    /// for someone coming along a narrow way (`passing`), with the point each makes for.
+    fn step_aside(
+        &mut self,
+        following: &[spacing::Body],
+        robots: &[spacing::Body],
+        now_ms: u32,
+    ) -> Vec<(u16, DVec2)> {
         let movers: Vec<_> = self.tracker.moving(now_ms).collect();
         let fleet = passing::Fleet {
-            followers: &following,
-            robots: &robots,
+            followers: following,
+            robots,
             space: passing::Space {
                 footprint: self.guidance.formation().spec().footprint,
                 personal: self.cfg.yielding.personal_space_m,
@@ -227,18 +232,17 @@ impl BaseStation {
         stepping.into_iter().map(|(id, p, _)| (id, p)).collect()
     }
 
-    /// The followers (of those following) held short of another robot, and those stepping
-    /// aside for them (`spacing`), with the point each makes for.
-    fn hold_apart(&mut self, followers: &[detour::Follower], now_ms: u32) -> Vec<(u16, DVec2)> {
-        let robots = self.fleet.bodies(now_ms);
-        let following: Vec<_> = robots
-            .iter()
-            .filter(|b| followers.iter().any(|f| f.id == b.id))
-            .copied()
-            .collect();
+    /// The followers (as for `step_aside`) held short of another robot, and those
+    /// stepping aside for them (`spacing`), with the point each makes for.
+    fn hold_apart(
+        &mut self,
+        following: &[spacing::Body],
+        robots: &[spacing::Body],
+        now_ms: u32,
+    ) -> Vec<(u16, DVec2)> {
         let fleet = spacing::Fleet {
-            followers: &following,
-            robots: &robots,
+            followers: following,
+            robots,
             footprint: self.guidance.formation().spec().footprint,
             offset: self.cfg.control_offset,
             brake: self.cfg.yield_brake,
