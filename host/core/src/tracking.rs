@@ -827,7 +827,6 @@ mod tests {
         let open = Map::new(vec![]);
         let (mut tracker, lane) = lane_after_a_stop(&open, 0.0, DVec2::ZERO);
         assert!(!lane.is_empty(), "no lane marked");
-        eprintln!("{lane:?}");
         // Ahead of them on the way they walked (from their hits' centroid, on the
         // scanner's side of them), up to LANE_M.
         let on_the_way = |p: &DVec2| (p.x - 10.0).abs() < 0.3 && p.y < 0.0 && p.y > -LANE_M - 0.1;

@@ -2,11 +2,12 @@
 //! passage between parked vans) someone walking toward the fleet passes the robots at
 //! whatever offset their way has: an oblivious walker 0.6 m off the middle of a 3 m alley
 //! grazed the line of robots standing in it, and every such walker came within 0.3 m of
-//! a robot (seeds 301–332). The scanner sees them from far off, long before the yielding
-//! layer holds the leader for them; the route then keeps out of their way, on the far side
-//! of the narrow way, with the personal space where the map leaves room for it (as
-//! someone pushing a cart does). The followers of the line drive the leader's path, so
-//! the whole line is aside by the time they meet.
+//! a robot (seeds 301–332). The scanner sees them 8 m off, some 4 s before they meet and
+//! before the yielding layer holds the leader for them. The leader's route then keeps out
+//! of their way, on the far side of the narrow way, with the personal space where the map
+//! leaves room for it (as someone pushing a cart does), and each follower they are about
+//! to pass steps square to their way until they are past it: a follower driving the
+//! leader's path would come aside too late.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -76,11 +77,11 @@ struct Aside {
 }
 
 impl Passing {
-    /// One period: for each mover newly seen coming the other way down a narrow way (on the
-    /// `site`'s map: what was marked, a crowd standing, makes no alley), whose
-    /// way passes the leader within the personal space, the discs (centre, radius) along
-    /// that way, from them to `STEER_M` ahead of the leader, that the route should keep
-    /// out of. Empty where there are none.
+    /// One period: for each mover newly seen coming the other way down a narrow way (on
+    /// the `site`'s map: what was marked, a crowd standing, makes no alley) whose way
+    /// passes the leader within the personal space, the discs (centre, radius) along that
+    /// way, from them to `STEER_M` ahead of the leader, that the route should keep out of.
+    /// Empty where there are none.
     pub fn step(
         &mut self,
         leader: PlanPose,
@@ -114,8 +115,7 @@ impl Passing {
     /// way, as far as the map and the other robots let it (at least `LEAST_STEP_M`),
     /// until they are past it. Returns each follower stepping aside, the point for its
     /// control point (`offset` ahead of its centre: the point lies the step's way on) and
-    /// whether
-    /// the step just began.
+    /// whether the step just began.
     pub fn step_aside(
         &mut self,
         now_ms: u32,
