@@ -98,6 +98,16 @@ pub struct LeaderEstimate {
 }
 
 impl LeaderEstimate {
+    /// As [`super::spacing`] takes it: robot `id`.
+    pub fn body(&self, id: u16) -> Body {
+        Body {
+            id,
+            position: self.pose.position,
+            heading: self.pose.heading,
+            v: self.v,
+        }
+    }
+
     /// As the formation manager takes it.
     pub fn motion(&self) -> LeaderMotion {
         LeaderMotion {
@@ -251,15 +261,7 @@ impl Fleet {
     /// Every robot with fresh telemetry, as [`Fleet::estimate`] makes it.
     pub fn bodies(&self, now_ms: u32) -> Vec<Body> {
         self.ids()
-            .filter_map(|id| {
-                let e = self.estimate(id, now_ms)?;
-                Some(Body {
-                    id,
-                    position: e.pose.position,
-                    heading: e.pose.heading,
-                    v: e.v,
-                })
-            })
+            .filter_map(|id| Some(self.estimate(id, now_ms)?.body(id)))
             .collect()
     }
 

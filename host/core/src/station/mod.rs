@@ -354,7 +354,9 @@ impl BaseStation {
                 at_ms: now_ms,
             });
         }
-        self.send_detours(leader.pose, &look.behind, now_ms);
+        // Every robot as estimated this period (the leader among them).
+        let bodies = self.fleet.bodies(now_ms);
+        self.send_detours(leader.pose, &look.behind, &movers, &bodies, now_ms);
         if !self.fleet_ready(now_ms) {
             // Leave only with the whole fleet: until then the leader holds.
             self.last_command = (0.0, 0.0);
@@ -367,7 +369,7 @@ impl BaseStation {
             return;
         }
         self.keep_aside(leader.pose, &movers, now_s);
-        let pace = self.yield_to_movers(&leader, &look, now_ms);
+        let pace = self.yield_to_movers(&leader, &look, &movers, now_ms);
         let drive = self
             .guidance
             .drive(now_s, leader.pose, look.waiting.min(pace), &self.world);
@@ -379,7 +381,8 @@ impl BaseStation {
         {
             self.drop_lanes();
         }
-        self.command_leader(&leader, (drive.v, drive.omega), look.blend, now_ms);
+        let command = (drive.v, drive.omega);
+        self.command_leader(&leader, command, &bodies, look.blend, now_ms);
     }
 
     /// What every period needs whatever the gate says: handshakes, slots when due, the
@@ -478,8 +481,13 @@ impl BaseStation {
     }
 
     /// The share of its pace the leader may use among what moves (1: nothing moves near).
-    fn yield_to_movers(&mut self, leader: &LeaderEstimate, look: &Look, now_ms: u32) -> f64 {
-        let movers: Vec<TrackView> = self.tracker.moving(now_ms).collect();
+    fn yield_to_movers(
+        &mut self,
+        leader: &LeaderEstimate,
+        look: &Look,
+        movers: &[TrackView],
+        now_ms: u32,
+    ) -> f64 {
         let positions = self.fleet.positions(now_ms);
         let followers: Vec<Option<DVec2>> = self
             .cfg
@@ -502,7 +510,7 @@ impl BaseStation {
         let now_s = now_ms as f64 / 1000.0;
         let y = self
             .yielding
-            .decide(now_s, &fleet, self.guidance.formation(), &movers);
+            .decide(now_s, &fleet, self.guidance.formation(), movers);
         if y.began {
             tracing::info!(
                 movers = movers.len(),
@@ -570,24 +578,19 @@ impl BaseStation {
         }
     }
 
-    /// The leader's command (`v` capped short of the other robots: [`spacing`]), then the
-    /// leader's state to every follower.
+    /// The leader's command (`v` capped short of the other robots, `bodies`: [`spacing`]),
+    /// then the leader's state to every follower.
     fn command_leader(
         &mut self,
         leader: &LeaderEstimate,
         (v, omega): (f64, f64),
+        bodies: &[spacing::Body],
         blend: f64,
         now_ms: u32,
     ) {
-        let body = spacing::Body {
-            id: self.cfg.leader,
-            position: leader.pose.position,
-            heading: leader.pose.heading,
-            v: leader.v,
-        };
-        let others = self.fleet.bodies(now_ms);
+        let body = leader.body(self.cfg.leader);
         let footprint = self.guidance.formation().spec().footprint;
-        let v = spacing::cap_leader(&body, v, &others, footprint, self.cfg.yield_brake);
+        let v = spacing::cap_leader(&body, v, bodies, footprint, self.cfg.yield_brake);
         self.last_command = (v, omega);
         let command = Message::VelocityCommand(VelocityCommand {
             v_mm_s: units::to_milli_i16(v as f32).unwrap_or(0),

@@ -251,10 +251,6 @@ fn against(m: &TrackView, heading: DVec2) -> bool {
 /// How far `m` walks before it is abreast of the leader, if it comes the other way down a
 /// narrow way, ahead, and would pass within the personal space.
 fn oncoming(leader: PlanPose, m: &TrackView, site: &Map, space: Space) -> Option<f64> {
-    let speed = m.velocity.length();
-    if speed < WALKING {
-        return None;
-    }
     let heading = DVec2::from_angle(leader.heading);
     if !against(m, heading) {
         return None;

@@ -11,6 +11,7 @@ use super::fleet::{is_following, position, LeaderEstimate};
 use super::spacing::{self, Order};
 use super::{detour, passing, BaseStation, Gate, StationEvent};
 use crate::planner::PlanPose;
+use crate::tracking::TrackView;
 
 impl BaseStation {
     /// Bytes to transmit, oldest first.
@@ -145,7 +146,15 @@ impl BaseStation {
 
     /// Detours for the followers held on their way ([`detour`]) or held short of another
     /// robot (`spacing`), sent every period.
-    pub(super) fn send_detours(&mut self, leader: PlanPose, behind: &[DVec2], now_ms: u32) {
+    /// `movers`: the tracks judged moving; `bodies`: every robot, as estimated this period.
+    pub(super) fn send_detours(
+        &mut self,
+        leader: PlanPose,
+        behind: &[DVec2],
+        movers: &[TrackView],
+        bodies: &[spacing::Body],
+        now_ms: u32,
+    ) {
         let mut followers = Vec::new();
         for (k, id) in self.cfg.followers.iter().enumerate() {
             let Some(t) = self.fleet.telemetry(*id, now_ms) else {
@@ -184,28 +193,28 @@ impl BaseStation {
             }
             told.insert(robot, point);
         }
-        let robots = self.fleet.bodies(now_ms);
-        let following: Vec<_> = robots
+        let following: Vec<_> = bodies
             .iter()
             .filter(|b| followers.iter().any(|f| f.id == b.id))
             .copied()
             .collect();
-        told.extend(self.step_aside(&following, &robots, now_ms));
-        told.extend(self.hold_apart(&following, &robots, now_ms));
+        told.extend(self.step_aside(&following, bodies, movers, now_ms));
+        told.extend(self.hold_apart(&following, bodies, now_ms));
         for (robot, point) in told {
             self.send_detour(robot, point, now_ms);
         }
     }
 
     /// The followers (`following`: those following; `robots`: every robot) stepping aside
-    /// for someone coming along a narrow way (`passing`), with the point each makes for.
+    /// for someone in `movers` coming along a narrow way (`passing`), with the point each
+    /// makes for.
     fn step_aside(
         &mut self,
         following: &[spacing::Body],
         robots: &[spacing::Body],
+        movers: &[TrackView],
         now_ms: u32,
     ) -> Vec<(u16, DVec2)> {
-        let movers: Vec<_> = self.tracker.moving(now_ms).collect();
         let fleet = passing::Fleet {
             followers: following,
             robots,
@@ -219,7 +228,7 @@ impl BaseStation {
             site: &self.cfg.map,
             world: &self.world,
         };
-        let stepping = self.passing.step_aside(now_ms, &fleet, &movers, maps);
+        let stepping = self.passing.step_aside(now_ms, &fleet, movers, maps);
         for (robot, began) in stepping.iter().map(|s| (s.0, s.2)) {
             if began {
                 tracing::info!(robot, "follower steps aside for someone passing");

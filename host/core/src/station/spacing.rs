@@ -164,8 +164,8 @@ impl Spacing {
     /// standing in the way of one held for `ROOM_AFTER_MS` steps aside (else the two wait
     /// for each other for good: the held one for the way, the other, behind it in the
     /// line, for its ring to see it go). Holds come first in the list. Points are for the
-    /// control point, `offset` ahead of the centre. `robots`: every robot, followers
-    /// included; `map`: what the robots must keep from.
+    /// control point, `fleet.offset` ahead of the centre. `map`: what the robots must keep
+    /// from.
     pub fn step(&mut self, now_ms: u32, fleet: &Fleet, map: &Map) -> Vec<Told> {
         let mut held = BTreeMap::new();
         let mut out = Vec::new();
@@ -235,9 +235,8 @@ pub struct Fleet<'a> {
 /// that takes it `ROOM_M` beyond that way, if that point is free of the map and the other
 /// robots.
 fn room_for(held: &Body, sign: f64, fleet: &Fleet, map: &Map) -> Option<(u16, DVec2)> {
-    let (other, _) = on_way(held, sign, fleet.robots, fleet.footprint)
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(o, gap, _)| (o, gap))?;
+    let (other, _, _) =
+        on_way(held, sign, fleet.robots, fleet.footprint).min_by(|a, b| a.1.total_cmp(&b.1))?;
     if other.v.abs() > STANDING || !fleet.followers.iter().any(|f| f.id == other.id) {
         return None;
     }
