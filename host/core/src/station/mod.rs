@@ -25,6 +25,7 @@ mod fixes;
 mod fleet;
 mod guidance;
 mod localize;
+mod making_way;
 mod operator;
 mod passing;
 mod radio;
@@ -46,6 +47,7 @@ pub use fleet::{is_following, LeaderEstimate, RobotStatus};
 pub use guidance::{Drive, Guidance, Look};
 pub use localize::NotForwarded;
 use localize::OutgoingFix;
+use making_way::MakingWay;
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
 use passing::Passing;
@@ -175,6 +177,8 @@ pub struct BaseStation {
     detours: Detours,
     /// Followers held short of another robot.
     spacing: Spacing,
+    /// The followers stepping off the leader's way.
+    making_way: MakingWay,
     /// People coming the other way down a narrow way, passed aside.
     passing: Passing,
 }
@@ -220,6 +224,7 @@ impl BaseStation {
             last_command: (0.0, 0.0),
             detours: Detours::default(),
             spacing: Spacing::default(),
+            making_way: MakingWay::default(),
             passing: Passing::default(),
         }
     }
@@ -356,7 +361,7 @@ impl BaseStation {
         }
         // Every robot as estimated this period (the leader among them).
         let bodies = self.fleet.bodies(now_ms);
-        self.send_detours(leader.pose, &look.behind, &movers, &bodies, now_ms);
+        self.send_detours(leader.pose, &look, &movers, &bodies, now_ms);
         if !self.fleet_ready(now_ms) {
             // Leave only with the whole fleet: until then the leader holds.
             self.last_command = (0.0, 0.0);
