@@ -25,7 +25,6 @@ mod fixes;
 mod fleet;
 mod guidance;
 mod localize;
-mod making_way;
 mod operator;
 mod passing;
 mod radio;
@@ -47,7 +46,6 @@ pub use fleet::{is_following, LeaderEstimate, RobotStatus};
 pub use guidance::{Drive, Guidance, Look};
 pub use localize::NotForwarded;
 use localize::OutgoingFix;
-use making_way::MakingWay;
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
 use passing::Passing;
@@ -177,8 +175,6 @@ pub struct BaseStation {
     detours: Detours,
     /// Followers held short of another robot.
     spacing: Spacing,
-    /// The followers stepping off the leader's way.
-    making_way: MakingWay,
     /// People coming the other way down a narrow way, passed aside.
     passing: Passing,
 }
@@ -224,7 +220,6 @@ impl BaseStation {
             last_command: (0.0, 0.0),
             detours: Detours::default(),
             spacing: Spacing::default(),
-            making_way: MakingWay::default(),
             passing: Passing::default(),
         }
     }
@@ -361,7 +356,7 @@ impl BaseStation {
         }
         // Every robot as estimated this period (the leader among them).
         let bodies = self.fleet.bodies(now_ms);
-        self.send_detours(leader.pose, &look, &movers, &bodies, now_ms);
+        self.send_detours(leader.pose, &look.behind, &movers, &bodies, now_ms);
         if !self.fleet_ready(now_ms) {
             // Leave only with the whole fleet: until then the leader holds.
             self.last_command = (0.0, 0.0);

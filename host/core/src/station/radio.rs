@@ -9,7 +9,7 @@ use protocol::{units, Address, Reject, MAX_WIRE};
 
 use super::fleet::{is_following, position, LeaderEstimate};
 use super::spacing::{self, Order};
-use super::{detour, making_way, passing, BaseStation, Gate, Look, StationEvent};
+use super::{detour, passing, BaseStation, Gate, StationEvent};
 use crate::planner::PlanPose;
 use crate::tracking::TrackView;
 
@@ -150,7 +150,7 @@ impl BaseStation {
     pub(super) fn send_detours(
         &mut self,
         leader: PlanPose,
-        look: &Look,
+        behind: &[DVec2],
         movers: &[TrackView],
         bodies: &[spacing::Body],
         now_ms: u32,
@@ -166,7 +166,7 @@ impl BaseStation {
             followers.push(detour::Follower {
                 id: *id,
                 position: position(&t),
-                reference: self.guidance.formation().reference(k, leader, &look.behind),
+                reference: self.guidance.formation().reference(k, leader, behind),
                 error: t.tracking_error_mm as f64 / 1000.0,
             });
         }
@@ -199,7 +199,6 @@ impl BaseStation {
             .copied()
             .collect();
         told.extend(self.step_aside(&following, bodies, movers, now_ms));
-        told.extend(self.make_way(&following, bodies, &look.ahead, now_ms));
         told.extend(self.hold_apart(&following, bodies, now_ms));
         for (robot, point) in told {
             self.send_detour(robot, point, now_ms);
@@ -240,37 +239,6 @@ impl BaseStation {
             }
         }
         stepping.into_iter().map(|(id, p, _)| (id, p)).collect()
-    }
-
-    /// The followers (as for `step_aside`) stepping off the leader's way `ahead`
-    /// (`making_way`), with the point each makes for.
-    fn make_way(
-        &mut self,
-        following: &[spacing::Body],
-        robots: &[spacing::Body],
-        ahead: &[DVec2],
-        now_ms: u32,
-    ) -> Vec<(u16, DVec2)> {
-        let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader).copied() else {
-            return Vec::new();
-        };
-        let fleet = making_way::Fleet {
-            leader,
-            ahead,
-            followers: following,
-            robots,
-            footprint: self.guidance.formation().spec().footprint,
-            offset: self.cfg.control_offset,
-        };
-        let told = self.making_way.step(now_ms, &fleet, &self.world);
-        for t in told.iter().filter(|t| t.began) {
-            tracing::info!(robot = t.id, "follower steps off the leader's way");
-            self.events.push(StationEvent::FollowerGivesWay {
-                robot: t.id,
-                at_ms: now_ms,
-            });
-        }
-        told.into_iter().map(|t| (t.id, t.point)).collect()
     }
 
     /// The followers (as for `step_aside`) held short of another robot, and those
