@@ -18,6 +18,7 @@
 //! - `events`: what the operator and the report are told; `smoothing`: the turn rate
 //!   the followers are told.
 
+mod blocking;
 mod detour;
 mod events;
 mod fix_check;
@@ -37,6 +38,7 @@ use protocol::link::{Link, Timing};
 use protocol::messages::{Message, Stop, VelocityCommand};
 use protocol::{units, Address, FrameDecoder, MasterKey, RejectCounts};
 
+use blocking::Blocking;
 use detour::Detours;
 pub use events::StationEvent;
 use fixes::FixWatch;
@@ -175,6 +177,8 @@ pub struct BaseStation {
     detours: Detours,
     /// Followers held short of another robot.
     spacing: Spacing,
+    /// Whether a follower stands in the leader's way.
+    blocking: Blocking,
     /// People coming the other way down a narrow way, passed aside.
     passing: Passing,
 }
@@ -220,6 +224,7 @@ impl BaseStation {
             last_command: (0.0, 0.0),
             detours: Detours::default(),
             spacing: Spacing::default(),
+            blocking: Blocking::default(),
             passing: Passing::default(),
         }
     }
@@ -369,6 +374,7 @@ impl BaseStation {
             return;
         }
         self.keep_aside(leader.pose, &movers, now_s);
+        self.go_round_followers(&look, &bodies, now_ms);
         let pace = self.yield_to_movers(&leader, &look, &movers, now_ms);
         let drive = self
             .guidance
@@ -478,6 +484,39 @@ impl BaseStation {
         tracing::info!("fleet ready");
         self.events.push(StationEvent::FleetReady { at_ms: now_ms });
         true
+    }
+
+    /// Where a follower has stood in the standing leader's way for a while, the leader's
+    /// way goes round it (`blocking`). `bodies`: every robot this period.
+    fn go_round_followers(&mut self, look: &Look, bodies: &[spacing::Body], now_ms: u32) {
+        let Some(leader) = bodies.iter().find(|b| b.id == self.cfg.leader).copied() else {
+            return;
+        };
+        let followers: Vec<spacing::Body> = bodies
+            .iter()
+            .filter(|b| {
+                self.fleet
+                    .telemetry(b.id, now_ms)
+                    .is_some_and(|t| b.id != self.cfg.leader && is_following(t.mode))
+            })
+            .copied()
+            .collect();
+        let fleet = blocking::Fleet {
+            leader,
+            ahead: &look.ahead,
+            followers: &followers,
+            footprint: self.guidance.formation().spec().footprint,
+        };
+        let now_s = now_ms as f64 / 1000.0;
+        if let Some((at, radius)) = self.blocking.step(now_s, &fleet) {
+            tracing::info!(
+                x = at.x,
+                y = at.y,
+                "a follower stands in the leader's way: going round it"
+            );
+            let from = leader.position;
+            self.guidance.avoid(at, radius, from, now_s, &self.world);
+        }
     }
 
     /// The share of its pace the leader may use among what moves (1: nothing moves near).
