@@ -103,8 +103,13 @@ pub fn write_report(report: &hil_sim::report::Report, path: &Path) -> anyhow::Re
     })
 }
 
-/// Where a file is written before it takes `path`'s place.
+/// Where a file is written before it takes `path`'s place: beside it, except where
+/// `path` is something other than a file (`/dev/null`, a pipe), which is written
+/// directly. Renamed over, `/dev/null` would become a file.
 pub fn partial_path(path: &Path) -> std::path::PathBuf {
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return path.to_path_buf();
+    }
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(".partial");
     path.with_file_name(name)
@@ -112,6 +117,7 @@ pub fn partial_path(path: &Path) -> std::path::PathBuf {
 
 /// Writes `path` through `write` to a partial file beside it, then renames it into
 /// place: an interrupted run never leaves half a file, nor loses the last whole one.
+/// (Where `path` is not a file, [`partial_path`] is `path` and the rename does nothing.)
 pub fn replace(path: &Path, write: impl FnOnce(&Path) -> anyhow::Result<()>) -> anyhow::Result<()> {
     let partial = partial_path(path);
     write(&partial)?;
@@ -176,4 +182,43 @@ pub struct ServeArgs {
     /// Lichtblick's web apps (repeatable; clients that send no Origin always may).
     #[arg(long, value_name = "ORIGIN", requires = "live")]
     pub live_origin: Vec<String>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Read;
+    use std::os::unix::fs::FileTypeExt;
+
+    #[test]
+    fn a_file_is_written_beside_and_renamed_and_a_pipe_in_place() {
+        let dir = std::env::temp_dir().join(format!("basestation-replace-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("a temporary directory");
+        // A file: written beside it, then renamed over it.
+        let file = dir.join("report.json");
+        assert_eq!(partial_path(&file), dir.join("report.json.partial"));
+        replace(&file, |p| Ok(std::fs::write(p, "whole")?)).expect("written");
+        assert_eq!(std::fs::read_to_string(&file).expect("read"), "whole");
+        assert!(!dir.join("report.json.partial").exists());
+        // A pipe (as `/dev/null` is a device): written through, and still a pipe after.
+        let fifo = dir.join("out.fifo");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        assert_eq!(partial_path(&fifo), fifo);
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || {
+                let mut text = String::new();
+                std::fs::File::open(&fifo)
+                    .and_then(|mut f| f.read_to_string(&mut text))
+                    .map(|_| text)
+            })
+        };
+        replace(&fifo, |p| Ok(std::fs::write(p, "through")?)).expect("written");
+        assert_eq!(reader.join().expect("reader").expect("read"), "through");
+        let kind = std::fs::metadata(&fifo).expect("still there").file_type();
+        assert!(kind.is_fifo(), "renamed over: {kind:?}");
+        assert_eq!(partial_path(Path::new("/dev/null")), Path::new("/dev/null"));
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }
