@@ -199,7 +199,8 @@ impl BaseStation {
             .copied()
             .collect();
         told.extend(self.step_aside(&following, bodies, movers, now_ms));
-        told.extend(self.hold_apart(&following, bodies, now_ms));
+        let slots: Vec<(u16, DVec2)> = followers.iter().map(|f| (f.id, f.reference)).collect();
+        told.extend(self.hold_apart(&following, bodies, &slots, now_ms));
         for (robot, point) in told {
             self.send_detour(robot, point, now_ms);
         }
@@ -241,12 +242,14 @@ impl BaseStation {
         stepping.into_iter().map(|(id, p, _)| (id, p)).collect()
     }
 
-    /// The followers (as for `step_aside`) held short of another robot, and those
-    /// stepping aside for them (`spacing`), with the point each makes for.
+    /// The followers (as for `step_aside`) held short of another robot or off a slot
+    /// (`slots`: each follower's) the leader stands on, and those stepping aside for
+    /// them (`spacing`), with the point each makes for.
     fn hold_apart(
         &mut self,
         following: &[spacing::Body],
         robots: &[spacing::Body],
+        slots: &[(u16, DVec2)],
         now_ms: u32,
     ) -> Vec<(u16, DVec2)> {
         let fleet = spacing::Fleet {
@@ -256,7 +259,10 @@ impl BaseStation {
             offset: self.cfg.control_offset,
             brake: self.cfg.yield_brake,
         };
-        let told = self.spacing.step(now_ms, &fleet, &self.world);
+        let mut told = self.spacing.step(now_ms, &fleet, &self.world);
+        if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {
+            told.extend(self.spacing.hold_off_slots(&fleet, leader, slots));
+        }
         let mut out = Vec::new();
         for t in told {
             if t.began {

@@ -156,6 +156,8 @@ struct Held {
 pub struct Spacing {
     held: BTreeMap<u16, Held>,
     making_room: BTreeSet<u16>,
+    /// The followers held off a slot the leader stands on.
+    off_slot: BTreeSet<u16>,
 }
 
 impl Spacing {
@@ -181,12 +183,10 @@ impl Spacing {
             }
             let since_ms = was.map_or(now_ms, |h| h.since_ms);
             held.insert(f.id, Held { sign, since_ms });
-            let ahead = DVec2::from_angle(f.heading);
-            let stop = stopping(f.v, fleet.brake) * f.v.signum();
             out.push(Told {
                 id: f.id,
                 order: Order::Hold,
-                point: f.position + ahead * (fleet.offset + stop),
+                point: hold_point(f, fleet),
                 began: was.is_none(),
             });
         }
@@ -215,6 +215,49 @@ impl Spacing {
         self.making_room = making_room;
         out
     }
+}
+
+impl Spacing {
+    /// One period: the followers whose slot (`slots`: each one's, for its control point)
+    /// lies where its footprint would come within [`KEEP_M`] of the leader's, held where
+    /// they can stop until it does not. Where the leader's route turns back along the
+    /// line, the slot on the path it drove can fall on the leader itself, and a follower
+    /// closing on it at its pace touched the leader's flank (plaza-0.3-social-seed103,
+    /// plaza-0.2-social-seed104).
+    pub fn hold_off_slots(
+        &mut self,
+        fleet: &Fleet,
+        leader: &Body,
+        slots: &[(u16, DVec2)],
+    ) -> Vec<Told> {
+        let reach = 2.0 * fleet.footprint + KEEP_M;
+        let mut held = BTreeSet::new();
+        let mut out = Vec::new();
+        for f in fleet.followers {
+            let Some((_, slot)) = slots.iter().find(|(id, _)| *id == f.id) else {
+                continue;
+            };
+            let centre = *slot - DVec2::from_angle(f.heading) * fleet.offset;
+            if centre.distance(leader.position) >= reach {
+                continue;
+            }
+            held.insert(f.id);
+            out.push(Told {
+                id: f.id,
+                order: Order::Hold,
+                point: hold_point(f, fleet),
+                began: !self.off_slot.contains(&f.id),
+            });
+        }
+        self.off_slot = held;
+        out
+    }
+}
+
+/// Where a held follower's control point makes for: the point it can stop at.
+fn hold_point(f: &Body, fleet: &Fleet) -> DVec2 {
+    let stop = stopping(f.v, fleet.brake) * f.v.signum();
+    f.position + DVec2::from_angle(f.heading) * (fleet.offset + stop)
 }
 
 /// What [`Spacing::step`] needs to know of the fleet this period.
@@ -385,6 +428,30 @@ mod tests {
         s.step(0, &fleet(&[one, two]), &wall);
         let two = Body { v: 0.0, ..two };
         assert_eq!(s.step(1500, &fleet(&[one, two]), &wall).len(), 1);
+    }
+
+    #[test]
+    fn a_follower_is_held_off_a_slot_the_leader_stands_on() {
+        let mut s = Spacing::default();
+        let leader = body(0, 0.0, 0.0, 90.0, 0.0);
+        // Follower 1 drives at the leader's flank, 1.2 m off, toward a slot 0.4 m from
+        // the leader's centre (its control point 0.2 m ahead of its centre).
+        let one = body(1, 1.2, 0.0, 180.0, 0.4);
+        let bodies = [leader, one];
+        let on_leader = [(1, DVec2::new(0.2, 0.0))];
+        let told = s.hold_off_slots(&fleet(&bodies[1..]), &leader, &on_leader);
+        assert_eq!(told.len(), 1);
+        let t = told[0];
+        assert!(t.id == 1 && t.order == Order::Hold && t.began);
+        let x = 1.2 - 0.2 - stopping(0.4, 0.8);
+        assert!((t.point.x - x).abs() < 1e-9 && t.point.y.abs() < 1e-9);
+        // Still there next period: not a new hold.
+        assert!(!s.hold_off_slots(&fleet(&bodies[1..]), &leader, &on_leader)[0].began);
+        // A slot with room beside the leader is the follower's to make for.
+        let beside = [(1, DVec2::new(0.6, 0.0))];
+        assert!(s
+            .hold_off_slots(&fleet(&bodies[1..]), &leader, &beside)
+            .is_empty());
     }
 
     #[test]
