@@ -121,12 +121,7 @@ mod tests {
     const FP: f64 = 0.3;
 
     fn body(id: u16, x: f64, y: f64, heading_deg: f64, v: f64) -> Body {
-        Body {
-            id,
-            position: DVec2::new(x, y),
-            heading: heading_deg.to_radians(),
-            v,
-        }
+        Body::at(id, x, y, heading_deg, v)
     }
 
     const WAY: [DVec2; 2] = [DVec2::ZERO, DVec2::new(5.0, 0.0)];

@@ -45,6 +45,17 @@ pub struct Body {
 }
 
 impl Body {
+    /// A body at (`x`, `y`) facing `heading_deg`, for the tests.
+    #[cfg(test)]
+    pub(super) fn at(id: u16, x: f64, y: f64, heading_deg: f64, v: f64) -> Self {
+        Self {
+            id,
+            position: DVec2::new(x, y),
+            heading: heading_deg.to_radians(),
+            v,
+        }
+    }
+
     fn velocity(&self) -> DVec2 {
         DVec2::from_angle(self.heading) * self.v
     }
@@ -306,12 +317,7 @@ mod tests {
     const FP: f64 = 0.3;
 
     fn body(id: u16, x: f64, y: f64, heading_deg: f64, v: f64) -> Body {
-        Body {
-            id,
-            position: DVec2::new(x, y),
-            heading: heading_deg.to_radians(),
-            v,
-        }
+        Body::at(id, x, y, heading_deg, v)
     }
 
     #[test]
