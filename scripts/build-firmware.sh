@@ -4,6 +4,12 @@
 # in firmware/mcu/size-<board>.txt, and fails above the budget (32 KiB flash, 8 KiB RAM).
 set -euo pipefail
 cd "$(dirname "$0")/../firmware/mcu"
+# Panic locations carry the absolute paths of the path dependencies (firmware/core,
+# protocol), about a dozen times: under their own path the image grew 12 B for each
+# character of the checkout's path. Mapped to one short prefix, it is the same size
+# wherever the repository is.
+root=$(cd ../.. && pwd)
+export RUSTFLAGS="${RUSTFLAGS:+$RUSTFLAGS }--remap-path-prefix=$root=/sweeper"
 
 rustup target add thumbv7em-none-eabihf >/dev/null
 rustup component add llvm-tools >/dev/null 2>&1 || true
