@@ -14,12 +14,9 @@ use std::collections::BTreeMap;
 
 use glam::DVec2;
 
-use super::spacing::Body;
+use super::spacing::{Body, RING_DEG, STANDING};
+use crate::geometry::closest_on_segment;
 
-/// A robot slower than this stands, m/s.
-const STANDING: f64 = 0.05;
-/// The leader's ring looks this far to either side of its heading, degrees.
-const RING_DEG: f64 = 40.0;
 /// A follower whose footprint is within this of the leader's stands in front of it, m.
 const NEAR_M: f64 = 0.3;
 /// Its footprint within this of the leader's way ahead, over [`AHEAD_M`] of it, is on
@@ -96,17 +93,10 @@ fn in_the_way(fleet: &Fleet) -> Vec<u16> {
 fn near_way(way: &[DVec2], p: DVec2, within: f64) -> bool {
     let mut along = 0.0;
     for w in way.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        let ab = b - a;
-        let t = if ab.length_squared() > 0.0 {
-            ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        if p.distance(a + ab * t) < within {
+        if p.distance(closest_on_segment(p, w[0], w[1])) < within {
             return true;
         }
-        along += ab.length();
+        along += w[0].distance(w[1]);
         if along >= AHEAD_M {
             break;
         }

@@ -223,6 +223,20 @@ impl Fleet {
             .collect()
     }
 
+    /// Of `bodies`, the followers following (not idle, stopped or failsafe), in order.
+    pub fn following(&self, bodies: &[Body], now_ms: u32) -> Vec<Body> {
+        bodies
+            .iter()
+            .filter(|b| {
+                self.followers.contains(&b.id)
+                    && self
+                        .telemetry(b.id, now_ms)
+                        .is_some_and(|t| is_following(t.mode))
+            })
+            .copied()
+            .collect()
+    }
+
     /// Whether every follower is linked, reporting and following (not idle, failsafe).
     pub fn all_following(&self, now_ms: u32) -> bool {
         self.followers.iter().all(|id| {

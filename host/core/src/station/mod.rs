@@ -62,6 +62,10 @@ use crate::planner::route::Route;
 use crate::planner::{PlanPose, PlannerEvent, PlannerParams};
 use crate::tracking::{TrackView, Tracker};
 
+/// Every robot as estimated this period (the leader among them), and of those the
+/// followers following.
+type Robots<'a> = (&'a [spacing::Body], &'a [spacing::Body]);
+
 /// Most robots one base station serves.
 pub const MAX_ROBOTS: usize = 1024;
 
@@ -361,7 +365,9 @@ impl BaseStation {
         }
         // Every robot as estimated this period (the leader among them).
         let bodies = self.fleet.bodies(now_ms);
-        self.send_detours(leader.pose, &look.behind, &movers, &bodies, now_ms);
+        let following = self.fleet.following(&bodies, now_ms);
+        let robots = (&bodies[..], &following[..]);
+        self.send_detours(leader.pose, &look.behind, &movers, robots, now_ms);
         if !self.fleet_ready(now_ms) {
             // Leave only with the whole fleet: until then the leader holds.
             self.last_command = (0.0, 0.0);
@@ -374,7 +380,7 @@ impl BaseStation {
             return;
         }
         self.keep_aside(leader.pose, &movers, now_s);
-        self.go_round_followers(&look, &bodies, now_ms);
+        self.go_round_followers(&look, robots, now_ms);
         let pace = self.yield_to_movers(&leader, &look, &movers, now_ms);
         let drive = self
             .guidance
@@ -487,24 +493,17 @@ impl BaseStation {
     }
 
     /// Where a follower has stood in the standing leader's way for a while, the leader's
-    /// way goes round it (`blocking`). `bodies`: every robot this period.
-    fn go_round_followers(&mut self, look: &Look, bodies: &[spacing::Body], now_ms: u32) {
+    /// way goes round it (`blocking`). `robots`: every robot this period, and the
+    /// followers following.
+    fn go_round_followers(&mut self, look: &Look, robots: Robots<'_>, now_ms: u32) {
+        let (bodies, following) = robots;
         let Some(leader) = bodies.iter().find(|b| b.id == self.cfg.leader).copied() else {
             return;
         };
-        let followers: Vec<spacing::Body> = bodies
-            .iter()
-            .filter(|b| {
-                self.fleet
-                    .telemetry(b.id, now_ms)
-                    .is_some_and(|t| b.id != self.cfg.leader && is_following(t.mode))
-            })
-            .copied()
-            .collect();
         let fleet = blocking::Fleet {
             leader,
             ahead: &look.ahead,
-            followers: &followers,
+            followers: following,
             footprint: self.guidance.formation().spec().footprint,
         };
         let now_s = now_ms as f64 / 1000.0;

@@ -9,7 +9,7 @@ use protocol::{units, Address, Reject, MAX_WIRE};
 
 use super::fleet::{is_following, position, LeaderEstimate};
 use super::spacing::{self, Order};
-use super::{detour, passing, BaseStation, Gate, StationEvent};
+use super::{detour, passing, BaseStation, Gate, Robots, StationEvent};
 use crate::planner::PlanPose;
 use crate::tracking::TrackView;
 
@@ -146,13 +146,14 @@ impl BaseStation {
 
     /// Detours for the followers held on their way ([`detour`]) or held short of another
     /// robot (`spacing`), sent every period.
-    /// `movers`: the tracks judged moving; `bodies`: every robot, as estimated this period.
+    /// `movers`: the tracks judged moving; `robots`: every robot as estimated this period,
+    /// and the followers following.
     pub(super) fn send_detours(
         &mut self,
         leader: PlanPose,
         behind: &[DVec2],
         movers: &[TrackView],
-        bodies: &[spacing::Body],
+        (bodies, following): Robots<'_>,
         now_ms: u32,
     ) {
         let mut followers = Vec::new();
@@ -193,14 +194,9 @@ impl BaseStation {
             }
             told.insert(robot, point);
         }
-        let following: Vec<_> = bodies
-            .iter()
-            .filter(|b| followers.iter().any(|f| f.id == b.id))
-            .copied()
-            .collect();
-        told.extend(self.step_aside(&following, bodies, movers, now_ms));
+        told.extend(self.step_aside(following, bodies, movers, now_ms));
         let slots: Vec<(u16, DVec2)> = followers.iter().map(|f| (f.id, f.reference)).collect();
-        told.extend(self.hold_apart(&following, bodies, &slots, now_ms));
+        told.extend(self.hold_apart(following, bodies, &slots, now_ms));
         for (robot, point) in told {
             self.send_detour(robot, point, now_ms);
         }

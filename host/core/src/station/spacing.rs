@@ -17,7 +17,7 @@ use crate::map::Map;
 
 /// The ring's outer beams, degrees off the way the robot drives (`hil-sim`'s ring): a
 /// robot whose centre is within them is the ring's to keep from.
-const RING_DEG: f64 = 40.0;
+pub(super) const RING_DEG: f64 = 40.0;
 /// What a robot keeps from another beyond both footprints, m.
 const KEEP_M: f64 = 0.05;
 /// A held follower goes on where its way is this clear, m.
@@ -29,7 +29,7 @@ const ROOM_M: f64 = 0.1;
 /// What the place it steps to keeps from the map beyond its footprint, m.
 const ROOM_MAP_M: f64 = 0.05;
 /// A robot slower than this stands, m/s.
-const STANDING: f64 = 0.05;
+pub(super) const STANDING: f64 = 0.05;
 /// What a stop allows for the station's delay: the telemetry's age and the command's
 /// trip (one period each), s.
 const LATENCY_S: f64 = 0.2;
@@ -226,9 +226,7 @@ impl Spacing {
         self.making_room = making_room;
         out
     }
-}
 
-impl Spacing {
     /// One period: the followers whose slot (`slots`: each one's, for its control point)
     /// lies where its footprint would come within [`KEEP_M`] of the leader's, held where
     /// they can stop until it does not. Where the leader's route turns back along the
