@@ -93,6 +93,17 @@ pub const OPEN_M: f64 = 2.0;
 pub const IN_THE_WAY_M: f64 = 1.0;
 /// Most tracks kept (the oldest unseen go first).
 pub const MAX_TRACKS: usize = 512;
+/// People walking side by side, or passing each other, give one cluster (their hits
+/// closer than [`LINK_M`]). A cluster wider than one person (this, m) where two or more
+/// tracks no larger than a person ([`PERSON_M`]) are predicted (within [`SPLIT_NEAR_M`]
+/// of its hits, m), one of which moved, is split between them, each hit to the nearest;
+/// hits farther than [`SPLIT_REACH_M`] from all of them are something else, m. Unsplit,
+/// one track took the pair and its centroid jumped between them, and the other ended
+/// and came back as a stranger the leader stopped for: on the social plazas of seeds
+/// 301-332, 11 of 32 crossings at 0.2 persons/m² reached the goal; split, 25.
+pub const SPLIT_ABOVE_M: f64 = 0.75;
+pub const SPLIT_NEAR_M: f64 = 0.4;
+pub const SPLIT_REACH_M: f64 = 0.6;
 
 /// What a track is doing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -529,6 +540,34 @@ fn clusters(hits: &[DVec2]) -> Vec<Cluster> {
         .collect()
 }
 
+/// `cluster`'s hits, each to the nearest of `people` (predicted centres) within
+/// [`SPLIT_REACH_M`], the rest clustered again on their own.
+fn split(cluster: &Cluster, people: &[DVec2], all: &[DVec2]) -> Vec<Cluster> {
+    let mut parts: Vec<Vec<usize>> = vec![Vec::new(); people.len()];
+    let mut rest = Vec::new();
+    for &i in &cluster.order {
+        let nearest = people
+            .iter()
+            .enumerate()
+            .map(|(k, at)| (all[i].distance(*at), k))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        match nearest {
+            Some((d, k)) if d <= SPLIT_REACH_M => parts[k].push(i),
+            _ => rest.push(i),
+        }
+    }
+    let leftover: Vec<DVec2> = rest.iter().map(|i| all[*i]).collect();
+    let again = clusters(&leftover)
+        .into_iter()
+        .map(|c| c.order.iter().map(|j| rest[*j]).collect::<Vec<_>>());
+    parts
+        .into_iter()
+        .chain(again)
+        .filter(|order| !order.is_empty())
+        .map(|order| Cluster::of(order, all))
+        .collect()
+}
+
 /// Hits to mark as standing, and tracks whose marks must go.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Observation {
@@ -598,7 +637,7 @@ impl Tracker {
             .iter()
             .find(|s| now_ms.saturating_sub(s.at_ms) >= BASELINE_MS)
             .cloned();
-        let clusters = clusters(hits);
+        let clusters = self.split_merged(clusters(hits), hits, now_ms);
         let pairs = self.associate(&clusters, now_ms);
         let moving: Vec<(u32, DVec2)> = self
             .tracks
@@ -678,6 +717,34 @@ impl Tracker {
         self.tracks
             .retain(|t| now_ms.saturating_sub(t.seen_ms) <= LOST_MS);
         self.counts.ended += (before - self.tracks.len()) as u64;
+    }
+
+    /// Each cluster wider than a person where two or more tracks of a person's size are
+    /// predicted, one of them a person (it moved), split between them
+    /// ([`SPLIT_ABOVE_M`]). Only those: a cluster where anything larger is predicted (a
+    /// wall, a van, people already taken as one) stays whole, and so do patches of
+    /// something standing that join as the scanner comes nearer.
+    fn split_merged(&self, clusters: Vec<Cluster>, all: &[DVec2], now_ms: u32) -> Vec<Cluster> {
+        let mut out = Vec::with_capacity(clusters.len());
+        for cluster in clusters {
+            let on: Vec<&Track> = if cluster.extent < SPLIT_ABOVE_M {
+                Vec::new()
+            } else {
+                let near = |t: &&Track| {
+                    let at = t.predicted(now_ms).0;
+                    cluster.hits.iter().any(|h| h.distance(at) <= SPLIT_NEAR_M)
+                };
+                self.tracks.iter().filter(near).collect()
+            };
+            let small = on.iter().all(|t| t.extent <= PERSON_M);
+            if on.len() < 2 || !small || !on.iter().any(|t| t.moved) {
+                out.push(cluster);
+                continue;
+            }
+            let centres: Vec<DVec2> = on.iter().map(|t| t.predicted(now_ms).0).collect();
+            out.extend(split(&cluster, &centres, all));
+        }
+        out
     }
 
     /// Nearest pairs first, each within its track's gate.
@@ -857,6 +924,43 @@ mod tests {
         let near = DVec2::new(8.0, -1.0);
         let (_, lane) = lane_after_a_stop(&Map::new(vec![]), FRAC_PI_2, near);
         assert!(lane.is_empty(), "stopped for the robots: {lane:?}");
+    }
+
+    #[test]
+    fn two_people_walking_side_by_side_keep_their_own_tracks() {
+        // Both walk toward the scanner, 0.6 m apart, one at 1.2 m/s catching up with one
+        // at 1.0 m/s from 1.4 m behind: from t = 5.3 s to 8.8 s their hits are one
+        // cluster (0.9 m wide).
+        let open = Map::new(vec![]);
+        let mut tracker = Tracker::new(0.8);
+        for k in 0..=100 {
+            let t = k as f64 * 0.1;
+            let a = DVec2::new(16.0 - 1.2 * t, 0.3);
+            let b = DVec2::new(14.6 - 1.0 * t, -0.3);
+            let hits: Vec<DVec2> = person_at(a).into_iter().chain(person_at(b)).collect();
+            tracker.observe(&hits, DVec2::ZERO, 0.0, &open, &[], k * 100);
+            if t < 2.0 {
+                continue;
+            }
+            let views: Vec<TrackView> = tracker.views(k * 100).collect();
+            assert_eq!(views.len(), 2, "t = {t:.1}: {views:?}");
+            for (at, v) in [(a, -1.2), (b, -1.0)] {
+                let own = views
+                    .iter()
+                    .min_by(|p, q| p.position.distance(at).total_cmp(&q.position.distance(at)))
+                    .expect("two tracks");
+                assert!(own.position.distance(at) < 0.35, "t = {t:.1}: {own:?}");
+                assert!(
+                    (own.velocity - DVec2::new(v, 0.0)).length() < 0.3,
+                    "t = {t:.1}: {own:?}"
+                );
+            }
+        }
+        assert_eq!(
+            tracker.counts().started,
+            2,
+            "a track ended and started again"
+        );
     }
 
     #[test]
