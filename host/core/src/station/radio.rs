@@ -255,7 +255,7 @@ impl BaseStation {
             offset: self.cfg.control_offset,
             brake: self.cfg.yield_brake,
         };
-        let mut told = self.spacing.step(now_ms, &fleet, &self.world);
+        let mut told = self.spacing.step(now_ms, &fleet, slots, &self.world);
         if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {
             told.extend(self.spacing.hold_off_slots(&fleet, leader, slots));
         }

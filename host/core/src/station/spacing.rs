@@ -30,6 +30,8 @@ const ROOM_M: f64 = 0.1;
 const ROOM_MAP_M: f64 = 0.05;
 /// A robot slower than this stands, m/s.
 pub(super) const STANDING: f64 = 0.05;
+/// A standing follower whose slot is farther than this sets off for it, m.
+const SET_OFF_M: f64 = 0.1;
 /// What a stop allows for the station's delay: the telemetry's age and the command's
 /// trip (one period each), s.
 const LATENCY_S: f64 = 0.2;
@@ -154,11 +156,13 @@ pub struct Told {
     pub began: bool,
 }
 
-/// A follower held: the way it was moving (1 forward, −1 backing) and since when.
+/// A follower held: the way it was moving (1 forward, −1 backing) and since when; for one
+/// held before it set off, the way to its slot (radians).
 #[derive(Debug, Clone, Copy)]
 struct Held {
     sign: f64,
     since_ms: u32,
+    to_slot: Option<f64>,
 }
 
 /// The followers held because their way runs into another robot, and those stepping aside
@@ -179,21 +183,49 @@ impl Spacing {
     /// line, for its ring to see it go). Holds come first in the list. Points are for the
     /// control point, `fleet.offset` ahead of the centre. `map`: what the robots must keep
     /// from.
-    pub fn step(&mut self, now_ms: u32, fleet: &Fleet, map: &Map) -> Vec<Told> {
+    ///
+    /// A follower standing is judged on the way to its slot (`slots`: each one's, for its
+    /// control point), where it will set off: judged on its heading, it was held only
+    /// once it moved, a period and the station's delay late, and a follower turning
+    /// from standing toward its slot grazed the flank of one standing beside it
+    /// (plaza-0.3-social-seed402).
+    pub fn step(
+        &mut self,
+        now_ms: u32,
+        fleet: &Fleet,
+        slots: &[(u16, DVec2)],
+        map: &Map,
+    ) -> Vec<Told> {
         let mut held = BTreeMap::new();
         let mut out = Vec::new();
         for f in fleet.followers {
             let was = self.held.get(&f.id).copied();
             let sign = was.map_or(if f.v < 0.0 { -1.0 } else { 1.0 }, |h| h.sign);
+            let to_slot = match was {
+                Some(h) => h.to_slot,
+                None if f.v.abs() <= STANDING => way_to_slot(f, slots, fleet.offset),
+                None => None,
+            };
+            let way = to_slot.map_or(*f, |heading| Body { heading, ..*f });
             let hold = match was {
-                Some(_) => free(f, sign, fleet.robots, fleet.footprint) < CLEAR_M,
+                Some(_) => free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M,
+                None if to_slot.is_some() => {
+                    free(&way, 1.0, fleet.robots, fleet.footprint) < CLEAR_M
+                }
                 None => f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake),
             };
             if !hold {
                 continue;
             }
             let since_ms = was.map_or(now_ms, |h| h.since_ms);
-            held.insert(f.id, Held { sign, since_ms });
+            held.insert(
+                f.id,
+                Held {
+                    sign,
+                    since_ms,
+                    to_slot,
+                },
+            );
             out.push(Told {
                 id: f.id,
                 order: Order::Hold,
@@ -209,7 +241,8 @@ impl Spacing {
             let Some(f) = fleet.followers.iter().find(|f| f.id == *id) else {
                 continue;
             };
-            let Some((other, point)) = room_for(f, h.sign, fleet, map) else {
+            let way = h.to_slot.map_or(*f, |heading| Body { heading, ..*f });
+            let Some((other, point)) = room_for(&way, h.sign, fleet, map) else {
                 continue;
             };
             if held.contains_key(&other) || !making_room.insert(other) {
@@ -261,6 +294,15 @@ impl Spacing {
         self.off_slot = held;
         out
     }
+}
+
+/// The way from a follower's control point to its slot (radians), if it has one and is
+/// not there already.
+fn way_to_slot(f: &Body, slots: &[(u16, DVec2)], offset: f64) -> Option<f64> {
+    let (_, slot) = slots.iter().find(|(id, _)| *id == f.id)?;
+    let control = f.position + DVec2::from_angle(f.heading) * offset;
+    let to = *slot - control;
+    (to.length() > SET_OFF_M).then(|| to.to_angle())
 }
 
 /// Where a held follower's control point makes for: the point it can stop at.
@@ -384,7 +426,7 @@ mod tests {
         let a = 60f64.to_radians();
         let one = body(1, 0.7 * a.cos(), 0.7 * a.sin(), 180.0, 0.0);
         let two = body(2, 0.0, 0.0, 0.0, 0.6);
-        let told = s.step(0, &fleet(&[one, two]), &open());
+        let told = s.step(0, &fleet(&[one, two]), &[], &open());
         assert_eq!(told.len(), 1);
         let t = told[0];
         assert!(t.id == 2 && t.order == Order::Hold && t.began);
@@ -393,14 +435,14 @@ mod tests {
         assert!((t.point.x - x).abs() < 1e-9 && t.point.y == 0.0);
         // Stopped, it stays held while follower 1 stands there...
         let two = Body { v: 0.0, ..two };
-        let told = s.step(100, &fleet(&[one, two]), &open());
+        let told = s.step(100, &fleet(&[one, two]), &[], &open());
         assert!(told.len() == 1 && !told[0].began && s.held.contains_key(&2));
         // ...and goes on once follower 1 has moved off.
         let one = Body {
             position: DVec2::new(-1.0, 2.0),
             ..one
         };
-        assert!(s.step(200, &fleet(&[one, two]), &open()).is_empty());
+        assert!(s.step(200, &fleet(&[one, two]), &[], &open()).is_empty());
         assert!(!s.held.contains_key(&2));
     }
 
@@ -410,11 +452,11 @@ mod tests {
         let a = 60f64.to_radians();
         let one = body(1, 0.7 * a.cos(), 0.7 * a.sin(), -90.0, 0.0);
         let two = body(2, 0.0, 0.0, 0.0, 0.6);
-        s.step(0, &fleet(&[one, two]), &open());
+        s.step(0, &fleet(&[one, two]), &[], &open());
         let two = Body { v: 0.0, ..two };
-        assert_eq!(s.step(1000, &fleet(&[one, two]), &open()).len(), 1);
+        assert_eq!(s.step(1000, &fleet(&[one, two]), &[], &open()).len(), 1);
         // Held 1.5 s: follower 1 is sent beyond follower 2's way, square to it.
-        let told = s.step(1500, &fleet(&[one, two]), &open());
+        let told = s.step(1500, &fleet(&[one, two]), &[], &open());
         assert_eq!(told.len(), 2);
         let room = told[1];
         assert!(room.id == 1 && room.order == Order::MakeRoom && room.began);
@@ -429,9 +471,33 @@ mod tests {
             radius: 0.2,
         }]);
         let two = Body { v: 0.6, ..two };
-        s.step(0, &fleet(&[one, two]), &wall);
+        s.step(0, &fleet(&[one, two]), &[], &wall);
         let two = Body { v: 0.0, ..two };
-        assert_eq!(s.step(1500, &fleet(&[one, two]), &wall).len(), 1);
+        assert_eq!(s.step(1500, &fleet(&[one, two]), &[], &wall).len(), 1);
+    }
+
+    #[test]
+    fn a_standing_follower_is_held_before_it_sets_off_past_another_ones_flank() {
+        let mut s = Spacing::default();
+        // Follower 2 stands facing away (heading 160°, as on plaza-0.3-social-seed402);
+        // its slot lies along -x, and follower 1 stands 0.65 m off at 114°: turning to
+        // its slot and driving, it would graze follower 1's flank.
+        let one = body(1, -0.26, 0.59, 6.0, 0.0);
+        let two = body(2, 0.0, 0.0, -158.0, 0.0);
+        let slot = [(2, DVec2::new(-2.2, 0.5))];
+        // Judged on its heading, nothing holds it (it stands, its way is clear).
+        assert!(s.step(0, &fleet(&[one, two]), &[], &open()).is_empty());
+        let told = s.step(100, &fleet(&[one, two]), &slot, &open());
+        assert_eq!(told.len(), 1);
+        let t = told[0];
+        assert!(t.id == 2 && t.order == Order::Hold && t.began);
+        // Held where it stands: its own control point.
+        let control = two.position + DVec2::from_angle(two.heading) * 0.2;
+        assert!(t.point.distance(control) < 1e-9);
+        // A slot the other way is clear to set off for.
+        let mut s = Spacing::default();
+        let away = [(2, DVec2::new(2.2, -0.5))];
+        assert!(s.step(0, &fleet(&[one, two]), &away, &open()).is_empty());
     }
 
     #[test]
@@ -464,9 +530,9 @@ mod tests {
         // Side by side 1 m apart (0.4 m between footprints), both driving on.
         let one = body(1, 0.0, 1.0, 0.0, 0.5);
         let two = body(2, 0.0, 0.0, 0.0, 0.5);
-        assert!(s.step(0, &fleet(&[one, two]), &open()).is_empty());
+        assert!(s.step(0, &fleet(&[one, two]), &[], &open()).is_empty());
         // One behind the other in a line, 1 m apart: the ring's to keep.
         let one = body(1, 1.6, 0.0, 0.0, 0.5);
-        assert!(s.step(100, &fleet(&[one, two]), &open()).is_empty());
+        assert!(s.step(100, &fleet(&[one, two]), &[], &open()).is_empty());
     }
 }
