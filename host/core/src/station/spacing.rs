@@ -157,12 +157,16 @@ pub struct Told {
 }
 
 /// A follower held: the way it was moving (1 forward, −1 backing) and since when; for one
-/// held before it set off, the way to its slot (radians).
+/// held before it set off, the way to its slot (radians); the point it makes for, fixed
+/// when the hold began (recomputed from where it was each period, the point ran ahead of
+/// a follower at 0.7 m/s by its stopping distance, and it never stopped: it grazed
+/// another follower converging beside it, plaza-0.3-social-seed102).
 #[derive(Debug, Clone, Copy)]
 struct Held {
     sign: f64,
     since_ms: u32,
     to_slot: Option<f64>,
+    point: DVec2,
 }
 
 /// The followers held because their way runs into another robot, and those stepping aside
@@ -218,18 +222,20 @@ impl Spacing {
                 continue;
             }
             let since_ms = was.map_or(now_ms, |h| h.since_ms);
+            let point = was.map_or_else(|| hold_point(f, fleet), |h| h.point);
             held.insert(
                 f.id,
                 Held {
                     sign,
                     since_ms,
                     to_slot,
+                    point,
                 },
             );
             out.push(Told {
                 id: f.id,
                 order: Order::Hold,
-                point: hold_point(f, fleet),
+                point,
                 began: was.is_none(),
             });
         }
@@ -433,10 +439,15 @@ mod tests {
         // It is held at the point it can stop at, ahead of its control point.
         let x = 0.2 + stopping(0.6, 0.8);
         assert!((t.point.x - x).abs() < 1e-9 && t.point.y == 0.0);
-        // Stopped, it stays held while follower 1 stands there...
-        let two = Body { v: 0.0, ..two };
+        // Further on, it stays held while follower 1 stands there, at the same point...
+        let two = Body {
+            position: DVec2::new(0.1, 0.0),
+            v: 0.2,
+            ..two
+        };
         let told = s.step(100, &fleet(&[one, two]), &[], &open());
         assert!(told.len() == 1 && !told[0].began && s.held.contains_key(&2));
+        assert!((told[0].point.x - x).abs() < 1e-9, "the point moved on");
         // ...and goes on once follower 1 has moved off.
         let one = Body {
             position: DVec2::new(-1.0, 2.0),
