@@ -3,7 +3,9 @@
 //! moving or still. Perception marks what stands still (a bin, a van, a person who stopped
 //! in the way) and leaves out what moves; the leader and the formation yield to what moves.
 //!
-//! - **Clusters**: hits closer than [`LINK_M`] to each other (single linkage).
+//! - **Clusters**: hits closer than [`LINK_M`] to each other (single linkage); a cluster
+//!   wider than a person where two or more people are predicted is split between them
+//!   ([`SPLIT_ABOVE_M`]).
 //! - **Association**: each track predicted to the scan's time takes the nearest cluster
 //!   within its gate ([`GATE_M`] plus three sigmas of its position), nearest pairs first;
 //!   a cluster nobody takes starts a track; a track not seen for [`LOST_MS`] ends.
