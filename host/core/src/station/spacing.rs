@@ -490,7 +490,7 @@ mod tests {
     #[test]
     fn a_standing_follower_is_held_before_it_sets_off_past_another_ones_flank() {
         let mut s = Spacing::default();
-        // Follower 2 stands facing away (heading 160°, as on plaza-0.3-social-seed402);
+        // Follower 2 stands facing away (heading −158°, as on plaza-0.3-social-seed402);
         // its slot lies along -x, and follower 1 stands 0.65 m off at 114°: turning to
         // its slot and driving, it would graze follower 1's flank.
         let one = body(1, -0.26, 0.59, 6.0, 0.0);

@@ -326,7 +326,8 @@ impl Yielding {
 }
 
 /// The least gap between a mover and any robot over the next [`IMMINENT_S`], over the
-/// next [`NEAR_S`] and over `horizon_s`, and the room the mover is owed.
+/// next [`NEAR_S`], over `horizon_s` and over [`CROSSING_S`], and the room the mover is
+/// owed.
 #[derive(Debug, Clone, Copy)]
 struct Gaps {
     imminent: f64,
@@ -397,7 +398,9 @@ fn rollout(
             if t <= spec.horizon_s + 1e-9 {
                 g.ahead = g.ahead.min(least);
             }
-            g.crossing = g.crossing.min(least);
+            if t <= CROSSING_S + 1e-9 {
+                g.crossing = g.crossing.min(least);
+            }
         }
     }
     gaps
