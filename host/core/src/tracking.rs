@@ -727,23 +727,31 @@ impl Tracker {
     /// wall, a van, people already taken as one) stays whole, and so do patches of
     /// something standing that join as the scanner comes nearer.
     fn split_merged(&self, clusters: Vec<Cluster>, all: &[DVec2], now_ms: u32) -> Vec<Cluster> {
+        if clusters.iter().all(|c| c.extent < SPLIT_ABOVE_M) {
+            return clusters;
+        }
+        // Each track predicted once per scan, not once per wide cluster.
+        let predicted: Vec<(DVec2, &Track)> = self
+            .tracks
+            .iter()
+            .map(|t| (t.predicted(now_ms).0, t))
+            .collect();
         let mut out = Vec::with_capacity(clusters.len());
         for cluster in clusters {
-            let on: Vec<&Track> = if cluster.extent < SPLIT_ABOVE_M {
+            let on: Vec<&(DVec2, &Track)> = if cluster.extent < SPLIT_ABOVE_M {
                 Vec::new()
             } else {
-                let near = |t: &&Track| {
-                    let at = t.predicted(now_ms).0;
-                    cluster.hits.iter().any(|h| h.distance(at) <= SPLIT_NEAR_M)
+                let near = |(at, _): &&(DVec2, &Track)| {
+                    cluster.hits.iter().any(|h| h.distance(*at) <= SPLIT_NEAR_M)
                 };
-                self.tracks.iter().filter(near).collect()
+                predicted.iter().filter(near).collect()
             };
-            let small = on.iter().all(|t| t.extent <= PERSON_M);
-            if on.len() < 2 || !small || !on.iter().any(|t| t.moved) {
+            let small = on.iter().all(|(_, t)| t.extent <= PERSON_M);
+            if on.len() < 2 || !small || !on.iter().any(|(_, t)| t.moved) {
                 out.push(cluster);
                 continue;
             }
-            let centres: Vec<DVec2> = on.iter().map(|t| t.predicted(now_ms).0).collect();
+            let centres: Vec<DVec2> = on.iter().map(|(at, _)| *at).collect();
             out.extend(split(&cluster, &centres, all));
         }
         out

@@ -186,6 +186,11 @@ impl Yielding {
         if near >= CROWD_COUNT {
             self.crowded_s = Some(now_s);
         }
+        self.in_crowd(now_s)
+    }
+
+    /// Whether movers crowded the way within the last [`CROWD_CLEAR_S`].
+    fn in_crowd(&self, now_s: f64) -> bool {
         self.crowded_s.is_some_and(|t| now_s - t <= CROWD_CLEAR_S)
     }
 
@@ -235,7 +240,7 @@ impl Yielding {
         let standing = rollout(fleet, formation, movers, 0.0, &self.spec);
         let wary = self.wary(now_s, fleet, movers);
         // In a crowd, someone's way always crosses the fleet's within a few seconds.
-        let lone = !self.crowded_s.is_some_and(|t| now_s - t <= CROWD_CLEAR_S);
+        let lone = !self.in_crowd(now_s);
         // The shares come fastest first: the first one within its cap is the answer.
         for share in SHARES.into_iter().filter(|s| *s > 0.0) {
             let gaps = rollout(fleet, formation, movers, share, &self.spec);
