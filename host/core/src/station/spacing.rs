@@ -204,19 +204,23 @@ impl Spacing {
         let mut out = Vec::new();
         for f in fleet.followers {
             let was = self.held.get(&f.id).copied();
-            let sign = was.map_or(if f.v < 0.0 { -1.0 } else { 1.0 }, |h| h.sign);
             let to_slot = match was {
                 Some(h) => h.to_slot,
                 None if f.v.abs() <= STANDING => way_to_slot(f, slots, fleet.offset),
                 None => None,
             };
+            // Toward its slot it sets off forward, whatever its speed's sign standing.
+            let sign = match (was, to_slot) {
+                (_, Some(_)) => 1.0,
+                (Some(h), None) => h.sign,
+                (None, None) if f.v < 0.0 => -1.0,
+                (None, None) => 1.0,
+            };
             let way = to_slot.map_or(*f, |heading| Body { heading, ..*f });
-            let hold = match was {
-                Some(_) => free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M,
-                None if to_slot.is_some() => {
-                    free(&way, 1.0, fleet.robots, fleet.footprint) < CLEAR_M
-                }
-                None => f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake),
+            let hold = if was.is_some() || to_slot.is_some() {
+                free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M
+            } else {
+                f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake)
             };
             if !hold {
                 continue;
@@ -505,6 +509,13 @@ mod tests {
         // Held where it stands: its own control point.
         let control = two.position + DVec2::from_angle(two.heading) * 0.2;
         assert!(t.point.distance(control) < 1e-9);
+        // Standing with a hair of backward speed, it is judged toward its slot too, and
+        // stays held while that way is not clear.
+        let creeping = Body { v: -0.01, ..two };
+        let mut s = Spacing::default();
+        assert_eq!(s.step(0, &fleet(&[one, creeping]), &slot, &open()).len(), 1);
+        let told = s.step(100, &fleet(&[one, creeping]), &slot, &open());
+        assert!(told.len() == 1 && !told[0].began, "let go and held again");
         // A slot the other way is clear to set off for.
         let mut s = Spacing::default();
         let away = [(2, DVec2::new(2.2, -0.5))];
