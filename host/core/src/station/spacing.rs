@@ -204,9 +204,14 @@ impl Spacing {
         let mut out = Vec::new();
         for f in fleet.followers {
             let was = self.held.get(&f.id).copied();
+            let standing = f.v.abs() <= STANDING;
             let to_slot = match was {
+                // The slot moves on with the leader: judged on the way to it as it was
+                // when the hold began, two followers 0.7 m apart held each other for
+                // 220 s (plaza-0.1-social-seed305).
+                Some(h) if h.to_slot.is_some() && standing => way_to_slot(f, slots, fleet.offset),
                 Some(h) => h.to_slot,
-                None if f.v.abs() <= STANDING => way_to_slot(f, slots, fleet.offset),
+                None if standing => way_to_slot(f, slots, fleet.offset),
                 None => None,
             };
             // Toward its slot it sets off forward, whatever its speed's sign standing.
@@ -520,6 +525,21 @@ mod tests {
         let mut s = Spacing::default();
         let away = [(2, DVec2::new(2.2, -0.5))];
         assert!(s.step(0, &fleet(&[one, two]), &away, &open()).is_empty());
+    }
+
+    #[test]
+    fn a_follower_held_before_it_sets_off_goes_once_its_slot_has_moved_clear() {
+        let mut s = Spacing::default();
+        // As above: follower 2's way to its slot passes follower 1's flank.
+        let one = body(1, -0.26, 0.59, 6.0, 0.0);
+        let two = body(2, 0.0, 0.0, -158.0, 0.0);
+        let slot = [(2, DVec2::new(-2.2, 0.5))];
+        assert_eq!(s.step(0, &fleet(&[one, two]), &slot, &open()).len(), 1);
+        assert_eq!(s.step(100, &fleet(&[one, two]), &slot, &open()).len(), 1);
+        // The leader drove on and the slot swung to the other side: that way is clear.
+        let moved = [(2, DVec2::new(0.5, -2.2))];
+        assert!(s.step(200, &fleet(&[one, two]), &moved, &open()).is_empty());
+        assert!(!s.held.contains_key(&2));
     }
 
     #[test]
