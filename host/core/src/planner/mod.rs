@@ -197,8 +197,10 @@ pub struct Planner {
     events: Vec<PlannerEvent>,
     /// Whether the step ended without a route last time (said once).
     no_route_said: bool,
-    /// Braking harder than `max_accel` allows, m/s² (yielding to a mover).
+    /// Braking and speeding up harder than `max_accel` allows, m/s² (yielding to
+    /// movers).
     brake: Option<f64>,
+    accel: Option<f64>,
 }
 
 /// The route layer's state.
@@ -323,6 +325,7 @@ impl Planner {
             events: Vec::new(),
             no_route_said: false,
             brake: None,
+            accel: None,
         }
     }
 
@@ -600,8 +603,7 @@ impl Planner {
         let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
         let target = p.max_speed * strength * align * align * speed_scale.clamp(0.0, 1.0);
-        let down = self.brake.unwrap_or(p.max_accel).max(p.max_accel);
-        self.v += (target - self.v).clamp(-down * dt, p.max_accel * dt);
+        self.ramp_to(target, dt);
         Command {
             v: self.v,
             omega,
@@ -822,6 +824,20 @@ impl Planner {
         self.brake = accel;
     }
 
+    /// Speeds up at up to `accel` (m/s², above `max_accel`) while set: the leader
+    /// getting going again among movers; `None`: at `max_accel`.
+    pub fn set_speeding_up(&mut self, accel: Option<f64>) {
+        self.accel = accel;
+    }
+
+    /// The speed toward `target`, braking and speeding up within their limits.
+    fn ramp_to(&mut self, target: f64, dt: f64) {
+        let a = self.params.max_accel;
+        let down = self.brake.unwrap_or(a).max(a);
+        let up = self.accel.unwrap_or(a).max(a);
+        self.v += (target - self.v).clamp(-down * dt, up * dt);
+    }
+
     /// Movers (a crowd filling a street) have held the leader: the disc they stand in is
     /// marked blocked and the route planned again from `from`. A guess, as a stuck mark
     /// is: forgotten where it leaves no way (the route then stays as it was).
@@ -919,8 +935,7 @@ impl Planner {
         // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
         let braking = (p.max_accel * to_end).sqrt();
         let target = (p.max_speed * align * align * speed_scale.clamp(0.0, 1.0)).min(braking);
-        let down = self.brake.unwrap_or(p.max_accel).max(p.max_accel);
-        self.v += (target - self.v).clamp(-down * dt, p.max_accel * dt);
+        self.ramp_to(target, dt);
         self.mode = Mode::Route;
         Command {
             v: self.v,

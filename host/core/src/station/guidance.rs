@@ -112,6 +112,11 @@ impl Guidance {
         self.planner.set_braking(accel);
     }
 
+    /// Speeds up harder than the planner's comfort allows (among movers), or not.
+    pub fn set_speeding_up(&mut self, accel: Option<f64>) {
+        self.planner.set_speeding_up(accel);
+    }
+
     /// Movers have held the leader: a way round the disc (`at`, `radius`) they stand in,
     /// from `from`, if the map has one.
     pub fn avoid(&mut self, at: DVec2, radius: f64, from: DVec2, now_s: f64, world: &Map) {
