@@ -119,6 +119,11 @@ fn bad_files_name_file_line_and_field() {
             format!("{GOOD}\n[[crowds]]\narea = {{ min = [9.0, 0.0], max = [0.0, 9.0] }}\ndensity = 0.1\n"),
             "field `crowds[0].area`: `min` must lie below and left of `max`",
         ),
+        (
+            "passing.toml",
+            format!("{GOOD}\n[yielding]\npassing_share = 1.5\n"),
+            "passing.toml:50:17: field `yielding.passing_share`: must be at most 1 (the leader's full pace), got 1.5",
+        ),
     ];
     for (name, text, expected) in cases {
         let (code, err) = check_text(name, text);

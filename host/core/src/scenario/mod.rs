@@ -638,6 +638,10 @@ pub struct YieldingSpec {
     pub horizon_s: f64,
     /// A leader held by movers this long takes another way, if there is one, s.
     pub replan_after_s: f64,
+    /// The share of its pace at which the leader passes people whose personal space it
+    /// cannot keep, in (0, 1]: 1 passes them at its pace (it still slows where it
+    /// would come within about 0.5 m of them, and stops for safety).
+    pub passing_share: f64,
 }
 
 impl Default for YieldingSpec {
@@ -646,6 +650,7 @@ impl Default for YieldingSpec {
             personal_space_m: 0.8,
             horizon_s: 1.0,
             replan_after_s: 20.0,
+            passing_share: 1.0,
         }
     }
 }

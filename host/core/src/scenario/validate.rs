@@ -552,6 +552,15 @@ impl Scenario {
         p.non_negative("yielding.personal_space_m", y.personal_space_m);
         p.positive("yielding.horizon_s", y.horizon_s);
         p.positive("yielding.replan_after_s", y.replan_after_s);
+        if p.positive("yielding.passing_share", y.passing_share) && y.passing_share > 1.0 {
+            p.fail(
+                "yielding.passing_share",
+                &format!(
+                    "must be at most 1 (the leader's full pace), got {}",
+                    y.passing_share
+                ),
+            );
+        }
         for (i, m) in self.movers.iter().enumerate() {
             check_mover(p, &format!("movers[{i}]"), m);
         }
