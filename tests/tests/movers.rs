@@ -13,8 +13,11 @@
 //! printed per suite as the crowd-navigation benchmarks report them (success, contact,
 //! timeout).
 //!
-//! The crowd bounds and the walked-into bound are not met yet: those tests are `#[ignore]`d
-//! with the reason (run them with `--include-ignored`); docs/results.md has the figures.
+//! The oblivious crowds' bounds and the walked-into bound are not met yet: those tests are
+//! `#[ignore]`d with the reason (run them with `--include-ignored`). The social crowds'
+//! bounds hold on seeds 1–4 (what CI runs) and 101–108, not on every wider set (seeds
+//! 301–332: 84 % of the 0.2 worlds reach the goal); docs/results.md#movers has the
+//! figures.
 //!
 //! A failing world is written to `target/mover-worlds/NAME.toml`: `basestation sim` it.
 //! `MOVER_SEEDS=N` runs N seeds per suite (default 4), from `MOVER_FIRST_SEED` (default
@@ -268,11 +271,10 @@ fn a_person_standing_20s_in_the_way() {
     }
 }
 
+/// Met on seeds 1–4 and 101–108 since 2026-12-04; on seeds 301–332 84 % of the 0.2
+/// worlds reach the goal with 2.3 s of intrusion, and 0.1 takes 1.30 × the empty time
+/// (docs/results.md#movers): wider sweeps (`MOVER_FIRST_SEED`) still fail it.
 #[test]
-#[ignore = "issue 29's crowd bounds are not met yet: at 0.2 persons/m² 69-100 % of \
-            worlds reach the goal (bound 99 %) with up to 1.9 s of intrusion (bound 1 s); \
-            at 0.1 the time is 1.5 × the empty site's (bound 1.3 ×); \
-            docs/results.md#movers. Run with --ignored"]
 fn social_crowds_on_a_plaza() {
     let mut failed = Vec::new();
     for density in [0.05, 0.1, 0.2, 0.3] {
