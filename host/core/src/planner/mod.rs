@@ -197,9 +197,9 @@ pub struct Planner {
     events: Vec<PlannerEvent>,
     /// Whether the step ended without a route last time (said once).
     no_route_said: bool,
-    /// Braking and speeding up harder than `max_accel` allows, m/s² (yielding to
-    /// movers).
+    /// Braking harder than `max_accel` allows, m/s² (yielding to a mover).
     brake: Option<f64>,
+    /// Speeding up harder than `max_accel` allows, m/s² (getting going among movers).
     accel: Option<f64>,
 }
 

@@ -28,10 +28,11 @@
 //! it cannot keep no faster than `[yielding] passing_share` (its full pace by default:
 //! 0.8 until 2026-12-04 took 1.49 × the empty time through 0.1 persons/m², 1 takes
 //! 1.30 ×); crosses those it cannot keep clear of (a crowd all round) no faster than
-//! [`SLOW_SHARE`]; else it stands. Courtesy slows it, only safety stops it. The other way round, with the room over a 4 s horizon as a
-//! condition to move (until 2026-12-03), some constant-velocity prediction always
-//! crossed the fleet's way in a crowd of 0.1 persons/m², and the leader stood for 170 of
-//! 300 s among people who steer round robots and would have made room.
+//! [`SLOW_SHARE`]; else it stands. Courtesy slows it, only safety stops it. The other
+//! way round, with the room over a 4 s horizon as a condition to move (until
+//! 2026-12-03), some constant-velocity prediction always crossed the fleet's way in a
+//! crowd of 0.1 persons/m², and the leader stood for 170 of 300 s among people who steer
+//! round robots and would have made room.
 //!
 //! Why this and not ORCA or a velocity obstacle on the leader's heading: the leader leads
 //! a formation, and a swerve of the leader swings every slot; a path kept and a pace
