@@ -32,4 +32,5 @@ pub mod ring;
 pub mod run;
 pub mod scanner;
 pub mod trace;
+pub mod tracking_bench;
 pub mod world;

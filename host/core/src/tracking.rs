@@ -9,9 +9,19 @@
 //! - **Association**: each track predicted to the scan's time takes the nearest cluster
 //!   within its gate ([`GATE_M`] plus three sigmas of its position), nearest pairs first;
 //!   a cluster nobody takes starts a track; a track not seen for [`LOST_MS`] ends.
-//! - **Velocity**: a constant-velocity Kalman filter per axis on the cluster's centroid
-//!   (white acceleration noise [`ACCEL_SIGMA`], centroid noise [`CENTROID_SIGMA_M`] plus a
-//!   share of the cluster's extent).
+//! - **Taken up again**: a person lost from view (behind someone else in a crowd) is kept
+//!   for [`REVIVE_MS`] more; a cluster nobody takes that lies along their way (between
+//!   where they were last seen and where they would be now, within [`REVIVE_GATE_M`]) is
+//!   them again: the same track, still moving, not a stranger seen for the first time.
+//! - **Centre**: a cluster no wider than a person is a person's near side: its centre is
+//!   fitted as the circle of [`PERSON_RADIUS_M`] its hits lie on, and is noisier the less
+//!   of them is seen ([`SLIVER_SIGMA_M`]); anything larger's is its centroid. The
+//!   centroid of a person half hidden behind another slid over their width from scan to
+//!   scan, and the velocity with it: on social plazas at 0.2 persons/m² a track's
+//!   prediction a second on was no nearer the person than where the track stood
+//!   (`tests/tests/tracking.rs`).
+//! - **Velocity**: a constant-velocity Kalman filter per axis on the centre (white
+//!   acceleration noise [`ACCEL_SIGMA`], the centre's noise as above).
 //! - **Moving or still**: judged on the hits, not the centroid (a long wall's visible part
 //!   slides along with the scanner; its centroid moves, its hits stay on the wall). A
 //!   cluster is *novel* where most of its hits lie farther than [`NOVEL_M`] from every hit
@@ -36,12 +46,27 @@ use crate::map::Map;
 
 /// Hits this close belong to one cluster, m.
 pub const LINK_M: f64 = 0.45;
-/// A track takes a cluster this far from where it was predicted, plus 3σ, m.
-pub const GATE_M: f64 = 0.8;
-/// A gate is never wider than this, m.
-pub const MAX_GATE_M: f64 = 2.5;
+/// A track takes a cluster this far from where it was predicted, plus 3σ, m; never
+/// farther than [`MAX_GATE_M`]. In a crowd people walk a metre apart: 0.8 m and 2.5 m
+/// (until 2026-12-04) let tracks take their neighbours' clusters.
+pub const GATE_M: f64 = 0.3;
+pub const MAX_GATE_M: f64 = 1.2;
 /// A track not seen for this long ends, ms.
 pub const LOST_MS: u32 = 1000;
+/// A person's track ended this long ago may still be taken up again, ms.
+pub const REVIVE_MS: u32 = 3000;
+/// By a cluster of a person's size this near their way since they were lost, m.
+pub const REVIVE_GATE_M: f64 = 1.0;
+/// A person's radius at the scanner's height, as the tracker takes it, m.
+pub const PERSON_RADIUS_M: f64 = 0.25;
+/// A cluster up to a person's breadth and this is fitted as one, m.
+const FIT_SLACK_M: f64 = 0.15;
+const FIT_STEPS: usize = 6;
+const FIT_DAMPING: f64 = 1e-3;
+/// A fitted centre's noise grows by up to this as less of the person is seen, m.
+const SLIVER_SIGMA_M: f64 = 0.2;
+/// The velocity's sigma of a track taken up again, m/s.
+const RESUMED_SIGMA_MPS: f64 = 0.5;
 /// White acceleration noise of the motion model, m/s².
 pub const ACCEL_SIGMA: f64 = 1.5;
 /// Noise of a centroid, m, plus a quarter of the cluster's extent.
@@ -215,8 +240,8 @@ impl Track {
         let sigma = cluster.sigma();
         Self {
             id,
-            x: Axis::new(cluster.centroid.x, sigma),
-            y: Axis::new(cluster.centroid.y, sigma),
+            x: Axis::new(cluster.centre.x, sigma),
+            y: Axis::new(cluster.centre.y, sigma),
             extent: cluster.extent,
             motion: Motion::New,
             moved: false,
@@ -230,6 +255,28 @@ impl Track {
             settled_since: None,
             history: VecDeque::from([(now_ms, cluster.hits.clone())]),
         }
+    }
+
+    /// Taken up again by `cluster` after it was lost, last seen at `seen_at`: its filter
+    /// starts again there, at the mean velocity over the gap. Predicted across the gap
+    /// the filter's velocity would swing past it (twice the error over the gap, as one
+    /// measurement after a long gap reads: someone held up out of view would be taken to
+    /// walk back).
+    fn resume(&mut self, cluster: &Cluster, seen_at: DVec2, now_ms: u32) {
+        let gap = now_ms.saturating_sub(self.seen_ms).max(1) as f64 / 1000.0;
+        let velocity = (cluster.centre - seen_at) / gap;
+        let sigma = cluster.sigma();
+        for (axis, p, v) in [
+            (&mut self.x, cluster.centre.x, velocity.x),
+            (&mut self.y, cluster.centre.y, velocity.y),
+        ] {
+            *axis = Axis {
+                p,
+                v,
+                c: [sigma * sigma, 0.0, RESUMED_SIGMA_MPS * RESUMED_SIGMA_MPS],
+            };
+        }
+        self.at_ms = now_ms;
     }
 
     fn predicted(&self, now_ms: u32) -> (DVec2, f64) {
@@ -287,8 +334,8 @@ impl Track {
         let dt = now_ms.saturating_sub(self.at_ms) as f64 / 1000.0;
         let sigma = cluster.sigma();
         for (axis, z) in [
-            (&mut self.x, cluster.centroid.x),
-            (&mut self.y, cluster.centroid.y),
+            (&mut self.x, cluster.centre.x),
+            (&mut self.y, cluster.centre.y),
         ] {
             axis.predict(dt);
             axis.update(z, sigma);
@@ -301,7 +348,7 @@ impl Track {
             self.stopped_alone = None;
             self.lane_dropped = false;
         } else if self.way.is_some() && self.stopped_alone.is_none() {
-            self.stopped_alone = Some(near.alone(self.id, cluster.centroid));
+            self.stopped_alone = Some(near.alone(self.id, cluster.centre));
         }
         let novelty = base.and_then(|b| self.novelty(&cluster.hits, b, now));
         self.history.push_back((now_ms, cluster.hits));
@@ -477,6 +524,11 @@ struct Cluster {
     /// Where each hit was in the scan.
     order: Vec<usize>,
     centroid: DVec2,
+    /// Where the thing's centre is: a person's fitted from the arc their hits lie on
+    /// ([`Cluster::fit`]); anything larger's, its centroid.
+    centre: DVec2,
+    /// The centre was fitted as a person's.
+    fitted: bool,
     extent: f64,
 }
 
@@ -492,12 +544,65 @@ impl Cluster {
             hits,
             order,
             centroid,
+            centre: centroid,
+            fitted: false,
             extent,
         }
     }
 
-    /// The centroid's noise: its hits are the near side only, and move over it.
+    /// The centre of a cluster no wider than a person (and [`FIT_SLACK_M`]) seen from
+    /// `origin`: the centre of the circle of a person's radius ([`PERSON_RADIUS_M`]) its
+    /// hits lie on nearest (Gauss-Newton from one radius behind the centroid), on the
+    /// far side of the hits. A sliver of someone half hidden keeps the start.
+    fn fit(&mut self, origin: DVec2) {
+        let r = PERSON_RADIUS_M;
+        if self.extent > 2.0 * r + FIT_SLACK_M {
+            return;
+        }
+        let away = (self.centroid - origin).normalize_or_zero();
+        let start = self.centroid + away * r;
+        let mut c = start;
+        for _ in 0..FIT_STEPS {
+            // Normal equations of the residuals |h - c| - r, damped.
+            let (mut a, mut b, mut d, mut gx, mut gy) = (FIT_DAMPING, 0.0, FIT_DAMPING, 0.0, 0.0);
+            for h in &self.hits {
+                let to = c - *h;
+                let len = to.length();
+                if len < 1e-9 {
+                    continue;
+                }
+                let j = to / len;
+                let res = len - r;
+                a += j.x * j.x;
+                b += j.x * j.y;
+                d += j.y * j.y;
+                gx += j.x * res;
+                gy += j.y * res;
+            }
+            let det = a * d - b * b;
+            let step = DVec2::new(d * gx - b * gy, a * gy - b * gx) / det;
+            c -= step;
+            if step.length() < 1e-4 {
+                break;
+            }
+        }
+        let behind = (c - self.centroid).dot(away) > 0.0;
+        self.centre = if behind && c.distance(start) <= r {
+            c
+        } else {
+            start
+        };
+        self.fitted = true;
+    }
+
+    /// The centre's noise: a centroid's hits are the near side only, and move over it; a
+    /// fitted centre's is least where the whole near side is seen and grows to a
+    /// person's radius for a sliver (the rest hidden, it may be either side).
     fn sigma(&self) -> f64 {
+        if self.fitted {
+            let seen = self.extent / (2.0 * PERSON_RADIUS_M);
+            return CENTROID_SIGMA_M + SLIVER_SIGMA_M * (1.0 - seen).max(0.0);
+        }
         CENTROID_SIGMA_M + 0.25 * self.extent
     }
 }
@@ -594,6 +699,8 @@ pub struct MarkTag {
 pub struct TrackCounts {
     pub started: u64,
     pub ended: u64,
+    /// Ended tracks taken up again ([`REVIVE_MS`]).
+    pub revived: u64,
     /// Tracks judged moving at least once.
     pub moved: u64,
 }
@@ -602,6 +709,8 @@ pub struct TrackCounts {
 #[derive(Debug, Clone, Default)]
 pub struct Tracker {
     tracks: Vec<Track>,
+    /// People's tracks ended within [`REVIVE_MS`], with where they were last seen.
+    lost: Vec<(Track, DVec2)>,
     /// The scans of the last [`HISTORY_MS`], oldest first.
     scans: VecDeque<Scan>,
     next_id: u32,
@@ -639,8 +748,12 @@ impl Tracker {
             .iter()
             .find(|s| now_ms.saturating_sub(s.at_ms) >= BASELINE_MS)
             .cloned();
-        let clusters = self.split_merged(clusters(hits), hits, now_ms);
-        let pairs = self.associate(&clusters, now_ms);
+        let mut clusters = self.split_merged(clusters(hits), hits, now_ms);
+        for c in &mut clusters {
+            c.fit(origin);
+        }
+        let mut pairs = self.associate(&clusters, now_ms);
+        pairs.extend(self.revive(&clusters, &pairs, now_ms));
         let moving: Vec<(u32, DVec2)> = self
             .tracks
             .iter()
@@ -713,12 +826,79 @@ impl Tracker {
         ids
     }
 
-    /// Ends the tracks not seen for [`LOST_MS`].
+    /// Ends the tracks not seen for [`LOST_MS`]; a person's is kept [`REVIVE_MS`] more.
     pub fn age(&mut self, now_ms: u32) {
-        let before = self.tracks.len();
-        self.tracks
-            .retain(|t| now_ms.saturating_sub(t.seen_ms) <= LOST_MS);
-        self.counts.ended += (before - self.tracks.len()) as u64;
+        let (kept, ended): (Vec<Track>, Vec<Track>) = std::mem::take(&mut self.tracks)
+            .into_iter()
+            .partition(|t| now_ms.saturating_sub(t.seen_ms) <= LOST_MS);
+        self.tracks = kept;
+        self.counts.ended += ended.len() as u64;
+        self.lost
+            .retain(|(t, _)| now_ms.saturating_sub(t.seen_ms) <= LOST_MS + REVIVE_MS);
+        for t in ended.into_iter().filter(|t| t.is_person()) {
+            let seen_at = t.predicted(t.seen_ms).0;
+            self.lost.push((t, seen_at));
+        }
+        // Bounded as the tracks are: the longest lost go first.
+        if self.lost.len() > MAX_TRACKS {
+            let extra = self.lost.len() - MAX_TRACKS;
+            self.lost.drain(..extra);
+        }
+    }
+
+    /// The clusters nobody took (`pairs`: those taken) that are people lost a moment ago
+    /// ([`REVIVE_GATE_M`] of their way since), nearest first: those tracks back among the
+    /// tracks, each with its cluster.
+    fn revive(
+        &mut self,
+        clusters: &[Cluster],
+        pairs: &[(usize, usize)],
+        now_ms: u32,
+    ) -> Vec<(usize, usize)> {
+        if self.lost.is_empty() {
+            return Vec::new();
+        }
+        let taken: Vec<bool> = (0..clusters.len())
+            .map(|c| pairs.iter().any(|(_, pc)| *pc == c))
+            .collect();
+        let mut candidates: Vec<(f64, usize, usize)> = Vec::new();
+        for (l, (track, seen_at)) in self.lost.iter().enumerate() {
+            let now_at = track.predicted(now_ms).0;
+            for (c, cluster) in clusters.iter().enumerate() {
+                if taken[c] || cluster.extent > PERSON_M {
+                    continue;
+                }
+                let on_way = crate::geometry::closest_on_segment(cluster.centre, *seen_at, now_at);
+                let d = on_way.distance(cluster.centre);
+                if d <= REVIVE_GATE_M {
+                    candidates.push((d, l, c));
+                }
+            }
+        }
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let (mut l_used, mut c_used) = (vec![false; self.lost.len()], vec![false; clusters.len()]);
+        let mut chosen = Vec::new();
+        for (_, l, c) in candidates {
+            if !l_used[l] && !c_used[c] {
+                l_used[l] = true;
+                c_used[c] = true;
+                chosen.push((l, c));
+            }
+        }
+        // Out of the lost, highest index first, so the indices still to take stay put.
+        chosen.sort_by_key(|(l, _)| std::cmp::Reverse(*l));
+        let mut out = Vec::with_capacity(chosen.len());
+        for (l, c) in chosen {
+            if self.tracks.len() >= MAX_TRACKS {
+                break;
+            }
+            let (mut track, seen_at) = self.lost.remove(l);
+            track.resume(&clusters[c], seen_at, now_ms);
+            self.tracks.push(track);
+            self.counts.revived += 1;
+            out.push((self.tracks.len() - 1, c));
+        }
+        out
     }
 
     /// Each cluster wider than a person where two or more tracks of a person's size are
@@ -764,7 +944,7 @@ impl Tracker {
             let (at, sigma) = track.predicted(now_ms);
             let gate = (GATE_M + 3.0 * sigma).min(MAX_GATE_M) + 0.5 * track.extent;
             for (c, cluster) in clusters.iter().enumerate() {
-                let d = at.distance(cluster.centroid);
+                let d = at.distance(cluster.centre);
                 if d <= gate + 0.5 * cluster.extent {
                     candidates.push((d, t, c));
                 }
@@ -978,5 +1158,30 @@ mod tests {
         let near = DVec2::new(8.0, -1.0);
         let (_, lane) = lane_after_a_stop(&Map::new(vec![]), 0.0, near);
         assert!(!lane.is_empty(), "stopped ahead of the leader: no lane");
+    }
+
+    #[test]
+    fn a_person_is_tracked_at_their_centre_and_kept_through_a_gap() {
+        // Walking along +y at 1.2 m/s, 6 m ahead of the scanner; out of view (behind
+        // someone) from 3 s to 4.5 s.
+        let open = Map::new(vec![]);
+        let mut tracker = Tracker::new(0.8);
+        let centre = |t: f64| DVec2::new(6.0, -3.0 + 1.2 * t);
+        for k in 0..=60 {
+            let t = k as f64 * 0.1;
+            let hits = if (3.0..4.5).contains(&t) {
+                Vec::new()
+            } else {
+                person_at(centre(t))
+            };
+            tracker.observe(&hits, DVec2::ZERO, 0.0, &open, &[], k * 100);
+        }
+        let views: Vec<TrackView> = tracker.views(6000).collect();
+        assert_eq!(views.len(), 1, "{views:?}");
+        let v = views[0];
+        assert!(v.position.distance(centre(6.0)) < 0.1, "{v:?}");
+        assert!((v.velocity - DVec2::new(0.0, 1.2)).length() < 0.3, "{v:?}");
+        assert_eq!(v.motion, Motion::Moving);
+        assert_eq!(tracker.counts().revived, 1);
     }
 }

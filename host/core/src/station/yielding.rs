@@ -68,9 +68,6 @@ const STEP_S: f64 = 0.25;
 const VELOCITY_GROWTH_MAX_M: f64 = 0.2;
 /// A track's disc is at least this: a person's footprint, m.
 const MIN_RADIUS_M: f64 = 0.3;
-/// The hits lie on the side facing the scanner (the leader): a small track's centre lies
-/// this much farther from it than their centroid, m.
-const NEAR_SIDE_M: f64 = 0.15;
 /// Nobody is to come within [`TOUCH_M`] of a robot over this: the leader brakes from
 /// full speed in about half a second, s.
 const NEAR_S: f64 = 1.0;
@@ -388,7 +385,7 @@ fn rollout(
             robots.push(*at);
         }
         for (m, g) in movers.iter().zip(gaps.iter_mut()) {
-            let (centre, radius) = disc(m, t, fleet.leader.position);
+            let (centre, radius) = disc(m, t);
             let least = robots
                 .iter()
                 .map(|r| r.distance(centre) - radius - fleet.footprint)
@@ -470,18 +467,13 @@ fn owed(m: &TrackView, personal_space: f64) -> f64 {
     }
 }
 
-/// A mover `t` seconds on: its centre, and its radius grown by its uncertainty. `scanner`:
-/// where its hits were seen from.
-fn disc(m: &TrackView, t: f64, scanner: DVec2) -> (DVec2, f64) {
+/// A mover `t` seconds on: its centre (the tracker fits a person's from their near side),
+/// and its radius grown by its uncertainty.
+fn disc(m: &TrackView, t: f64) -> (DVec2, f64) {
     let radius = m.radius.max(MIN_RADIUS_M)
         + m.position_sigma
         + (m.velocity_sigma * t).min(VELOCITY_GROWTH_MAX_M);
-    let behind = if m.radius < MIN_RADIUS_M {
-        (m.position - scanner).normalize_or_zero() * NEAR_SIDE_M
-    } else {
-        DVec2::ZERO
-    };
-    (m.at(t) + behind, radius)
+    (m.at(t), radius)
 }
 
 /// A polyline by arc length.
