@@ -635,8 +635,8 @@ mod tests {
         };
         let mut y = Yielding::new(spec.clone());
         // Someone standing 0.9 m beside the way just ahead: the leader passes within
-        // their personal space, not within touch.
-        let beside = person(1, (0.8, 0.9), (0.0, 0.0));
+        // their personal space, not within touch (1.05 m: their centre).
+        let beside = person(1, (0.8, 1.05), (0.0, 0.0));
         assert_eq!(decide(&mut y, 0.0, &[beside]), 0.6);
         // Nobody near: full pace.
         let far = person(1, (0.8, 4.0), (0.0, 0.0));
