@@ -607,6 +607,26 @@ impl Cluster {
     }
 }
 
+/// Of `candidates` (distance, one of `a` things, one of `b`), the nearest pairs first,
+/// each thing in one pair at most (ties by index).
+fn nearest_pairs(
+    mut candidates: Vec<(f64, usize, usize)>,
+    a: usize,
+    b: usize,
+) -> Vec<(usize, usize)> {
+    candidates.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    let (mut a_used, mut b_used) = (vec![false; a], vec![false; b]);
+    let mut pairs = Vec::new();
+    for (_, i, j) in candidates {
+        if !a_used[i] && !b_used[j] {
+            a_used[i] = true;
+            b_used[j] = true;
+            pairs.push((i, j));
+        }
+    }
+    pairs
+}
+
 /// Single-linkage clusters of `hits` ([`LINK_M`]), each hit in one.
 fn clusters(hits: &[DVec2]) -> Vec<Cluster> {
     let mut parent: Vec<usize> = (0..hits.len()).collect();
@@ -875,16 +895,7 @@ impl Tracker {
                 }
             }
         }
-        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let (mut l_used, mut c_used) = (vec![false; self.lost.len()], vec![false; clusters.len()]);
-        let mut chosen = Vec::new();
-        for (_, l, c) in candidates {
-            if !l_used[l] && !c_used[c] {
-                l_used[l] = true;
-                c_used[c] = true;
-                chosen.push((l, c));
-            }
-        }
+        let mut chosen = nearest_pairs(candidates, self.lost.len(), clusters.len());
         // Out of the lost, highest index first, so the indices still to take stay put.
         chosen.sort_by_key(|(l, _)| std::cmp::Reverse(*l));
         let mut out = Vec::with_capacity(chosen.len());
@@ -950,18 +961,7 @@ impl Tracker {
                 }
             }
         }
-        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let (mut t_used, mut c_used) =
-            (vec![false; self.tracks.len()], vec![false; clusters.len()]);
-        let mut pairs = Vec::new();
-        for (_, t, c) in candidates {
-            if !t_used[t] && !c_used[c] {
-                t_used[t] = true;
-                c_used[c] = true;
-                pairs.push((t, c));
-            }
-        }
-        pairs
+        nearest_pairs(candidates, self.tracks.len(), clusters.len())
     }
 
     fn start(&mut self, cluster: &Cluster, now_ms: u32) -> usize {
