@@ -46,8 +46,8 @@ pub trait FleetView {
     /// station's last step.
     fn blend(&self, t_us: u64) -> f64;
     fn target(&self) -> Target;
-    /// Slot `k`'s (L, φ), wide and line.
-    fn slot(&self, k: usize) -> Option<SlotPair>;
+    /// A follower's slot's (L, φ), wide and line, as the station last handed it out.
+    fn slot(&self, robot: u16) -> Option<SlotPair>;
     fn mode(&self, robot: u16) -> Option<RobotMode>;
     /// What the station tracks at `t_us` (none where the station is not in this process).
     fn tracks(&self, _t_us: u64) -> Vec<TrackView> {
@@ -69,7 +69,8 @@ impl FleetView for StationView<'_> {
     fn target(&self) -> Target {
         self.station.formation().target()
     }
-    fn slot(&self, k: usize) -> Option<SlotPair> {
+    fn slot(&self, robot: u16) -> Option<SlotPair> {
+        let k = self.station.slot_of(robot)?;
         let f = self.station.formation();
         Some((*f.wide_slots().get(k)?, *f.line_slots().get(k)?))
     }
@@ -386,18 +387,10 @@ impl Recorder {
         near_obstacle: bool,
     ) {
         let blend = view.blend(t_us);
-        // Slot k belongs to the follower with the k-th smallest id (the station's order).
-        let mut ids: Vec<u16> = robots
-            .iter()
-            .filter(|r| r.role() == Role::Follower)
-            .map(|r| r.id())
-            .collect();
-        ids.sort();
         let reference = |id: u16| -> Option<DVec2> {
             let l = leader?;
-            let k = ids.binary_search(&id).ok()?;
             let pos = DVec2::new(l.x, l.y);
-            let ((wl, wphi), (ll, _)) = view.slot(k)?;
+            let ((wl, wphi), (ll, _)) = view.slot(id)?;
             let a = l.heading + wphi;
             let wide = pos + DVec2::new(a.cos(), a.sin()) * wl;
             if blend <= 0.0 {

@@ -38,8 +38,8 @@ pub struct AirObserver {
     /// The transition under way or last done: from which blend, to what, started when
     /// (world clock, s).
     transition: Option<(f64, Target, f64)>,
-    /// Slot index → (wide, line) as (L, φ).
-    slots: BTreeMap<usize, SlotPair>,
+    /// Robot → its slot (wide, line) as (L, φ), as last told.
+    slots: BTreeMap<u16, SlotPair>,
     modes: BTreeMap<u16, RobotMode>,
     transformations: Vec<Transformation>,
     /// The base station's recent frames' apparent latency (heard − stamped), s: the
@@ -88,16 +88,16 @@ impl AirObserver {
         for &b in bytes {
             if let Some(Ok(raw)) = decoder.push(b) {
                 if let Ok((header, message)) = frame::parse_unverified(raw) {
-                    messages.push((header.from, header.time_ms, message));
+                    messages.push((header.from, header.to, header.time_ms, message));
                 }
             }
         }
-        for (sender, stamp_ms, message) in messages {
+        for (sender, to, stamp_ms, message) in messages {
             let t_s = match sender {
                 Address::Base => self.station_time(stamp_ms, t_s),
                 _ => t_s,
             };
-            self.absorb(sender, message, t_s);
+            self.absorb(sender, to, message, t_s);
         }
     }
 
@@ -112,7 +112,7 @@ impl AirObserver {
         stamp_s + offset
     }
 
-    fn absorb(&mut self, sender: Address, message: Message, t_s: f64) {
+    fn absorb(&mut self, sender: Address, to: Address, message: Message, t_s: f64) {
         match (sender, message) {
             (Address::Base, Message::LeaderState(s)) => {
                 let blend = s.blend as f64 / 255.0;
@@ -160,12 +160,13 @@ impl AirObserver {
                 self.heard = blend;
             }
             (Address::Base, Message::FormationCommand(f)) => {
+                let Address::Robot(robot) = to else {
+                    return;
+                };
                 let (wl, wphi) = f.wide.to_si();
                 let (ll, lphi) = f.line.to_si();
-                self.slots.insert(
-                    f.index as usize,
-                    ((wl as f64, wphi as f64), (ll as f64, lphi as f64)),
-                );
+                self.slots
+                    .insert(robot, ((wl as f64, wphi as f64), (ll as f64, lphi as f64)));
             }
             (Address::Robot(id), Message::Telemetry(t)) => {
                 self.modes.insert(id, t.mode);
@@ -192,8 +193,8 @@ impl FleetView for AirObserver {
     fn target(&self) -> Target {
         self.transition.map_or(Target::Wide, |t| t.1)
     }
-    fn slot(&self, k: usize) -> Option<SlotPair> {
-        self.slots.get(&k).copied()
+    fn slot(&self, robot: u16) -> Option<SlotPair> {
+        self.slots.get(&robot).copied()
     }
     fn mode(&self, robot: u16) -> Option<RobotMode> {
         self.modes.get(&robot).copied()

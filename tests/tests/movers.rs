@@ -340,6 +340,21 @@ fn robots_keep_apart_in_dense_crowds() {
     assert!(touched.is_empty(), "{}", touched.join("\n"));
 }
 
+/// A line that comes out of a hold in the other order has its slots handed out in the
+/// order its followers stand (`station/order.rs`): on this fresh seed the follower left
+/// behind followed the other at its ring's distance, 2 m off its slot, and the leader
+/// waited for it at its floor pace until the world's time was up.
+#[test]
+fn a_line_out_of_order_reaches_the_goal() {
+    let g = gen::standing_person(107, false);
+    let path = save(&g);
+    let s = Scenario::parse(&g.toml, &g.name).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let (r, _) = common::run(s, 107);
+    let reordered = r.events_named("line_reordered").next().is_some();
+    assert!(reordered, "{path}: the line was never reordered");
+    assert!(r.goal_reached, "{path}: goal not reached");
+}
+
 #[test]
 fn movers_among_unmapped_obstacles() {
     let (_, o) = suite("movers-unmapped", gen::movers_and_unmapped);

@@ -69,6 +69,11 @@ pub enum StationEvent {
         robot: u16,
         at_ms: u32,
     },
+    /// The line's followers stood out of order: its slots were handed out anew in the
+    /// order they stand (`order`).
+    LineReordered {
+        at_ms: u32,
+    },
     /// A follower stepped aside for someone coming along a narrow way (`passing`).
     FollowerStepsAside {
         robot: u16,
@@ -113,6 +118,7 @@ impl StationEvent {
             E::FollowerGivesWay { robot, at_ms } => {
                 (*at_ms, "follower_gives_way".into(), Some(*robot))
             }
+            E::LineReordered { at_ms } => (*at_ms, "line_reordered".into(), None),
             E::FollowerStepsAside { robot, at_ms } => {
                 (*at_ms, "follower_steps_aside".into(), Some(*robot))
             }

@@ -130,7 +130,8 @@ pub struct Heard {
 #[derive(Debug, Clone)]
 pub struct Fleet {
     pub leader: u16,
-    /// In slot order: follower k takes slot k.
+    /// In slot order: follower k takes slot k (handed out anew where the line came out
+    /// of order).
     pub followers: Vec<u16>,
     robots: BTreeMap<u16, RobotStatus>,
     track_width: f64,
@@ -220,6 +221,14 @@ impl Fleet {
     pub fn positions(&self, now_ms: u32) -> Vec<(u16, DVec2)> {
         self.ids()
             .filter_map(|id| Some((id, position(&self.telemetry(id, now_ms)?))))
+            .collect()
+    }
+
+    /// Each follower's position, in slot order (None: no fresh telemetry).
+    pub fn follower_positions(&self, now_ms: u32) -> Vec<Option<DVec2>> {
+        self.followers
+            .iter()
+            .map(|id| Some(position(&self.telemetry(*id, now_ms)?)))
             .collect()
     }
 

@@ -27,6 +27,7 @@ mod fleet;
 mod guidance;
 mod localize;
 mod operator;
+mod order;
 mod passing;
 mod radio;
 mod smoothing;
@@ -50,12 +51,13 @@ pub use localize::NotForwarded;
 use localize::OutgoingFix;
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
+use order::LineOrder;
 use passing::Passing;
 pub use smoothing::TurnRateSmoother;
 use spacing::Spacing;
 pub use yielding::{Yield, Yielding, VEHICLE_SPACE_M};
 
-use crate::formation::{FormationManager, FormationSpec};
+use crate::formation::{FollowerStatus, FormationManager, FormationSpec};
 use crate::map::Map;
 use crate::perception::{Change, Perception, PerceptionLimits};
 use crate::planner::route::Route;
@@ -73,7 +75,8 @@ pub const MAX_ROBOTS: usize = 1024;
 #[derive(Debug, Clone)]
 pub struct StationConfig {
     pub leader: u16,
-    /// In slot order: follower k takes slot k.
+    /// In slot order at the start: follower k takes slot k (the station may hand the
+    /// line's slots out anew, `order`).
     pub followers: Vec<u16>,
     pub planner: PlannerParams,
     pub formation: FormationSpec,
@@ -185,6 +188,8 @@ pub struct BaseStation {
     blocking: Blocking,
     /// People coming the other way down a narrow way, passed aside.
     passing: Passing,
+    /// Whether the line's followers stand in slot order.
+    line_order: LineOrder,
 }
 
 impl BaseStation {
@@ -230,11 +235,17 @@ impl BaseStation {
             spacing: Spacing::default(),
             blocking: Blocking::default(),
             passing: Passing::default(),
+            line_order: LineOrder::default(),
         }
     }
 
     pub fn config(&self) -> &StationConfig {
         &self.cfg
+    }
+
+    /// The slot a follower holds now (its index among the formation's slots).
+    pub fn slot_of(&self, robot: u16) -> Option<usize> {
+        self.fleet.followers.iter().position(|id| *id == robot)
     }
     pub fn link(&self) -> &Link<MAX_ROBOTS> {
         &self.link
@@ -363,6 +374,7 @@ impl BaseStation {
                 at_ms: now_ms,
             });
         }
+        self.keep_line_order(&look.behind, &statuses, now_ms);
         // Every robot as estimated this period (the leader among them).
         let bodies = self.fleet.bodies(now_ms);
         let following = self.fleet.following(&bodies, now_ms);
@@ -526,13 +538,7 @@ impl BaseStation {
         movers: &[TrackView],
         now_ms: u32,
     ) -> f64 {
-        let positions = self.fleet.positions(now_ms);
-        let followers: Vec<Option<DVec2>> = self
-            .cfg
-            .followers
-            .iter()
-            .map(|id| positions.iter().find(|(r, _)| r == id).map(|(_, p)| *p))
-            .collect();
+        let followers = self.fleet.follower_positions(now_ms);
         let fleet = yielding::Fleet {
             leader: leader.pose,
             v: leader.v,
@@ -576,6 +582,34 @@ impl BaseStation {
     /// at 0.5 m/s² (`docs/results.md#movers`).
     fn resume_accel(&self) -> f64 {
         self.cfg.follower_accel.max(self.cfg.planner.max_accel)
+    }
+
+    /// The line's slots handed out again in the order its followers stand on the
+    /// leader's trail (`behind`), where they came out of order (`order`).
+    /// `statuses`: the followers' in slot order.
+    fn keep_line_order(
+        &mut self,
+        behind: &[DVec2],
+        statuses: &[Option<FollowerStatus>],
+        now_ms: u32,
+    ) {
+        let in_line = self.guidance.formation().blend() >= 0.5;
+        let order = &self.fleet.followers;
+        let Some(order) = self
+            .line_order
+            .step(now_ms, in_line, order, statuses, behind)
+        else {
+            return;
+        };
+        tracing::info!(
+            ?order,
+            "the line's followers out of order: slots handed out anew"
+        );
+        self.events
+            .push(StationEvent::LineReordered { at_ms: now_ms });
+        self.fleet.followers = order;
+        self.send_slots(now_ms);
+        self.last_slots_ms = Some(now_ms);
     }
 
     /// People coming the other way down a narrow way: the route keeps out of their way.

@@ -103,8 +103,8 @@ impl BaseStation {
 
     /// Each follower's two slots.
     pub(super) fn send_slots(&mut self, now_ms: u32) {
-        let n = self.cfg.followers.len();
-        for (k, id) in self.cfg.followers.clone().into_iter().enumerate() {
+        let n = self.fleet.followers.len();
+        for (k, id) in self.fleet.followers.clone().into_iter().enumerate() {
             let slot =
                 |(l, phi): (f64, f64)| Slot::from_si(l as f32, phi as f32).unwrap_or_default();
             let formation = self.guidance.formation();
@@ -157,7 +157,7 @@ impl BaseStation {
         now_ms: u32,
     ) {
         let mut followers = Vec::new();
-        for (k, id) in self.cfg.followers.iter().enumerate() {
+        for (k, id) in self.fleet.followers.iter().enumerate() {
             let Some(t) = self.fleet.telemetry(*id, now_ms) else {
                 continue;
             };
