@@ -88,6 +88,10 @@ pub enum StationEvent {
     Yielding {
         at_ms: u32,
     },
+    /// The leader, held, began to back out of the way of someone who may not see it.
+    SteppingBack {
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -127,6 +131,7 @@ impl StationEvent {
             }
             E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
             E::Yielding { at_ms } => (*at_ms, "yielding".into(), Some(leader)),
+            E::SteppingBack { at_ms } => (*at_ms, "stepping_back".into(), Some(leader)),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }

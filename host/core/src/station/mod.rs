@@ -11,6 +11,8 @@
 //!   assembling);
 //! - `guidance`: the planner and the formation manager (`look`, then `drive`);
 //! - `passing`: the route kept aside for people coming the other way down a narrow way;
+//!   `yielding`: the leader's pace among what moves, and `stepping_back` out of the way
+//!   of someone who does not see it;
 //! - `detour`: followers sent round what holds them; `spacing`: no robot driven into
 //!   another where its ring cannot see it;
 //! - `localize` with `fixes` and `fix_check`: fixes from the site's localization
@@ -32,6 +34,7 @@ mod passing;
 mod radio;
 mod smoothing;
 mod spacing;
+mod stepping_back;
 mod yielding;
 
 use glam::DVec2;
@@ -103,6 +106,8 @@ pub struct StationConfig {
     /// How hard the leader may brake for someone in its way (a margin under its limit),
     /// m/s².
     pub yield_brake: f64,
+    /// How fast the leader backs out of someone's way (a margin under its limit), m/s.
+    pub reverse_speed: f64,
     /// How far ahead of a follower's centre its control point is (the L-φ law's d), m.
     pub control_offset: f64,
 }
@@ -127,6 +132,7 @@ impl StationConfig {
             perception: PerceptionLimits::from_scenario(s),
             yielding: s.yielding.clone(),
             yield_brake: 0.8 * s.robot.max_accel,
+            reverse_speed: 0.8 * s.robot.max_reverse_speed,
             control_offset: s.follower.d,
         }
     }
@@ -190,6 +196,8 @@ pub struct BaseStation {
     passing: Passing,
     /// Whether the line's followers stand in slot order.
     line_order: LineOrder,
+    /// The leader backs out of someone's way (`stepping_back`).
+    backing: bool,
 }
 
 impl BaseStation {
@@ -236,6 +244,7 @@ impl BaseStation {
             blocking: Blocking::default(),
             passing: Passing::default(),
             line_order: LineOrder::default(),
+            backing: false,
         }
     }
 
@@ -393,7 +402,7 @@ impl BaseStation {
         }
         self.keep_aside(leader.pose, &movers, now_s);
         self.go_round_followers(&look, robots, now_ms);
-        let pace = self.yield_to_movers(&leader, &look, &movers, now_ms);
+        let (pace, back) = self.yield_to_movers(&leader, &look, &movers, now_ms);
         let drive = self
             .guidance
             .drive(now_s, leader.pose, look.waiting.min(pace), &self.world);
@@ -405,7 +414,11 @@ impl BaseStation {
         {
             self.drop_lanes();
         }
-        let command = (drive.v, drive.omega);
+        let command = if back {
+            (-self.cfg.reverse_speed, 0.0)
+        } else {
+            (drive.v, drive.omega)
+        };
         self.command_leader(&leader, command, &bodies, look.blend, now_ms);
     }
 
@@ -530,14 +543,15 @@ impl BaseStation {
         }
     }
 
-    /// The share of its pace the leader may use among what moves (1: nothing moves near).
+    /// The share of its pace the leader may use among what moves (1: nothing moves near),
+    /// and whether it backs out of someone's way instead.
     fn yield_to_movers(
         &mut self,
         leader: &LeaderEstimate,
         look: &Look,
         movers: &[TrackView],
         now_ms: u32,
-    ) -> f64 {
+    ) -> (f64, bool) {
         let followers = self.fleet.follower_positions(now_ms);
         let fleet = yielding::Fleet {
             leader: leader.pose,
@@ -550,6 +564,8 @@ impl BaseStation {
             behind: &look.behind,
             followers: &followers,
             follower_speed: self.cfg.follower_speed,
+            reverse: self.cfg.reverse_speed,
+            site: &self.world,
         };
         let now_s = now_ms as f64 / 1000.0;
         let y = self
@@ -573,7 +589,13 @@ impl BaseStation {
             let from = leader.pose.position;
             self.guidance.avoid(at, radius, from, now_s, &self.world);
         }
-        y.share
+        if y.back && !self.backing {
+            tracing::info!("the leader steps back out of someone's way");
+            self.events
+                .push(StationEvent::SteppingBack { at_ms: now_ms });
+        }
+        self.backing = y.back;
+        (y.share, y.back)
     }
 
     /// How hard the leader speeds up among movers: as hard as its followers may, not at

@@ -37,8 +37,9 @@
 //! Why this and not ORCA or a velocity obstacle on the leader's heading: the leader leads
 //! a formation, and a swerve of the leader swings every slot; a path kept and a pace
 //! chosen keep the formation whole and make the robots predictable to the people round
-//! them (they slow and wait; they do not dodge). It never backs: a standstill is the
-//! slowest choice, so nobody is backed into. Chosen 2026-12-03, measured in
+//! them (they slow and wait; they do not dodge). A standstill is the slowest pace; away
+//! from a crowd, held, it may back out of the way of someone who does not see it
+//! (`stepping_back`), never toward anyone it knows of. Chosen 2026-12-03, measured in
 //! `docs/sim.md#movers`.
 //!
 //! Held for `replan_after_s` by movers (a crowd filling a street), the leader asks the
@@ -48,8 +49,10 @@ use std::collections::HashMap;
 
 use glam::DVec2;
 
+use super::stepping_back;
 use crate::formation::FormationManager;
 use crate::geometry::PlanPose;
+use crate::map::Map;
 use crate::scenario::YieldingSpec;
 use crate::tracking::TrackView;
 
@@ -112,6 +115,9 @@ pub struct Yield {
     pub began: bool,
     /// Held long enough: a way round is due, round this point and radius.
     pub avoid: Option<(DVec2, f64)>,
+    /// Held, and someone who may not see it would walk into it standing: it backs out
+    /// of their way (`stepping_back`).
+    pub back: bool,
 }
 
 /// What the rollout needs of the fleet now.
@@ -131,6 +137,10 @@ pub struct Fleet<'a> {
     /// Each follower's position (None: not known), in slot order.
     pub followers: &'a [Option<DVec2>],
     pub follower_speed: f64,
+    /// How fast the leader backs, m/s.
+    pub reverse: f64,
+    /// What the leader must keep from: the site and what was sensed.
+    pub site: &'a Map,
 }
 
 /// The leader's pace among movers.
@@ -198,16 +208,19 @@ impl Yielding {
         formation: &FormationManager,
         movers: &[TrackView],
     ) -> Yield {
-        let share = if movers.is_empty() {
+        let (share, wary) = if movers.is_empty() {
             // Nobody moves: what was known of anyone's manners is stale (someone who
             // stood for a while sets off as a stranger).
             self.manners.clear();
-            1.0
+            (1.0, Vec::new())
         } else {
-            self.choose(now_s, fleet, formation, movers)
+            let wary = self.wary(now_s, fleet, movers);
+            (self.choose(now_s, fleet, formation, movers, &wary), wary)
         };
         self.last = share;
         let held = share < HELD_BELOW;
+        // Away from a crowd only: in one, someone is always behind.
+        let back = held && !self.in_crowd(now_s) && self.backs(fleet, movers, &wary);
         let began = held && self.held_since_s.is_none();
         if !held {
             self.held_since_s = None;
@@ -220,7 +233,24 @@ impl Yielding {
             held,
             began,
             avoid,
+            back,
         }
+    }
+
+    /// Whether the leader, held, backs out of the way of one of `movers` (`wary`: whom
+    /// the robots cannot count on to steer round them).
+    fn backs(&self, fleet: &Fleet<'_>, movers: &[TrackView], wary: &[bool]) -> bool {
+        let followers: Vec<DVec2> = fleet.followers.iter().flatten().copied().collect();
+        let leader = stepping_back::Leader {
+            position: fleet.leader.position,
+            followers: &followers,
+            heading: fleet.leader.heading,
+            v: fleet.v,
+            footprint: fleet.footprint,
+            reverse: fleet.reverse,
+            accel: fleet.brake,
+        };
+        stepping_back::should_back(&leader, movers, wary, fleet.site)
     }
 
     /// The fastest safe share, no faster than its courtesy allows (see the module's doc):
@@ -232,9 +262,9 @@ impl Yielding {
         fleet: &Fleet<'_>,
         formation: &FormationManager,
         movers: &[TrackView],
+        wary: &[bool],
     ) -> f64 {
         let standing = rollout(fleet, formation, movers, 0.0, &self.spec);
-        let wary = self.wary(now_s, fleet, movers);
         // In a crowd, someone's way always crosses the fleet's within a few seconds.
         let lone = !self.in_crowd(now_s);
         // The shares come fastest first: the first one within its cap is the answer.
@@ -247,7 +277,7 @@ impl Yielding {
             };
             let each = || gaps.iter().zip(&standing);
             if !each()
-                .zip(&wary)
+                .zip(wary)
                 .all(|((g, s), w)| safe(g, s, *w, lone, extra))
             {
                 continue;
@@ -574,6 +604,8 @@ mod tests {
             behind: &behind,
             followers: &[None, None],
             follower_speed: 0.6,
+            reverse: 0.24,
+            site: &Map::new(Vec::new()),
         };
         y.decide(now_s, &fleet, &formation(), movers).share
     }
