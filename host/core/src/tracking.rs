@@ -235,6 +235,23 @@ impl TrackView {
     }
 }
 
+#[cfg(test)]
+impl TrackView {
+    /// A person tracked well, at `at` walking at `v`: the station's tests' mover.
+    pub(crate) fn person_at(id: u32, at: (f64, f64), v: (f64, f64)) -> Self {
+        Self {
+            id,
+            position: DVec2::new(at.0, at.1),
+            velocity: DVec2::new(v.0, v.1),
+            position_sigma: 0.05,
+            velocity_sigma: 0.05,
+            radius: 0.25,
+            motion: Motion::Moving,
+            person: true,
+        }
+    }
+}
+
 impl Track {
     fn new(id: u32, cluster: &Cluster, now_ms: u32) -> Self {
         let sigma = cluster.sigma();

@@ -282,7 +282,6 @@ fn narrow_between(site: &Map, a: DVec2, b: DVec2, heading: DVec2) -> bool {
 mod tests {
     use super::*;
     use crate::geometry::Obstacle;
-    use crate::tracking::Motion;
 
     const SPACE: Space = Space {
         footprint: 0.3,
@@ -299,14 +298,8 @@ mod tests {
 
     fn walker(id: u32, x: f64, y: f64, vx: f64, vy: f64) -> TrackView {
         TrackView {
-            id,
-            position: DVec2::new(x, y),
-            velocity: DVec2::new(vx, vy),
-            position_sigma: 0.05,
             velocity_sigma: 0.1,
-            radius: 0.25,
-            motion: Motion::Moving,
-            person: true,
+            ..TrackView::person_at(id, (x, y), (vx, vy))
         }
     }
 

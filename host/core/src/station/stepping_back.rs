@@ -116,7 +116,6 @@ fn way_behind_free(leader: &Leader, site: &Map) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracking::Motion;
 
     fn leader(v: f64) -> Leader<'static> {
         Leader {
@@ -131,16 +130,7 @@ mod tests {
     }
 
     fn walker(at: (f64, f64), v: (f64, f64)) -> TrackView {
-        TrackView {
-            id: 1,
-            position: DVec2::new(at.0, at.1),
-            velocity: DVec2::new(v.0, v.1),
-            position_sigma: 0.05,
-            velocity_sigma: 0.05,
-            radius: 0.25,
-            motion: Motion::Moving,
-            person: true,
-        }
+        TrackView::person_at(1, at, v)
     }
 
     fn open() -> Map {

@@ -565,7 +565,6 @@ impl<'a> Path<'a> {
 mod tests {
     use super::*;
     use crate::scenario::Scenario;
-    use crate::tracking::Motion;
 
     fn formation() -> FormationManager {
         let src = include_str!("../../../../scenarios/paper-obstacles.toml");
@@ -574,16 +573,7 @@ mod tests {
     }
 
     fn person(id: u32, at: (f64, f64), v: (f64, f64)) -> TrackView {
-        TrackView {
-            id,
-            position: DVec2::new(at.0, at.1),
-            velocity: DVec2::new(v.0, v.1),
-            position_sigma: 0.05,
-            velocity_sigma: 0.05,
-            radius: 0.25,
-            motion: Motion::Moving,
-            person: true,
-        }
+        TrackView::person_at(id, at, v)
     }
 
     /// The leader at the origin driving along +x at full pace, its followers unknown.
