@@ -11,6 +11,7 @@
 
 use glam::DVec2;
 
+use super::yielding::MIN_RADIUS_M;
 use crate::map::Map;
 use crate::tracking::TrackView;
 
@@ -20,8 +21,6 @@ pub const AHEAD_S: f64 = 2.5;
 const STEP_S: f64 = 0.1;
 /// Nobody is to come this close to the leader's footprint (their track's disc), m.
 const CLEAR_M: f64 = 0.15;
-/// A track's disc is at least a person's footprint, m.
-const MIN_RADIUS_M: f64 = 0.3;
 /// The way behind the leader keeps this from the site beyond its footprint, m.
 const SITE_MARGIN_M: f64 = 0.1;
 

@@ -70,7 +70,7 @@ const STEP_S: f64 = 0.25;
 /// A track's velocity uncertainty grows its disc for at most this much, m.
 const VELOCITY_GROWTH_MAX_M: f64 = 0.2;
 /// A track's disc is at least this: a person's footprint, m.
-const MIN_RADIUS_M: f64 = 0.3;
+pub(super) const MIN_RADIUS_M: f64 = 0.3;
 /// Nobody is to come within [`TOUCH_M`] of a robot over this: the leader brakes from
 /// full speed in about half a second, s.
 const NEAR_S: f64 = 1.0;
