@@ -25,7 +25,7 @@
 
 use protocol::messages::{faults, RobotMode};
 
-use crate::config::{RobotConfig, Role};
+use crate::config::{Limits, RobotConfig, Role};
 use crate::follower::{self, LeaderSnapshot, SlotRef, Slots, Trail};
 use crate::kinematics::WheelSpeeds;
 use crate::odometry::{FixOutcome, Odometry, PoseFixSample};
@@ -427,13 +427,7 @@ impl Controller {
 
     /// Speed and turn-rate limits, and the acceleration limit from the last command.
     fn limit(&self, t: Twist, dt: f32) -> Twist {
-        let l = &self.cfg.limits;
-        let v = math::clamp(t.v, -l.max_reverse, l.max_v);
-        let v = math::approach(self.commanded.v, v, l.max_accel * dt);
-        Twist {
-            v,
-            omega: math::clamp(t.omega, -l.max_omega, l.max_omega),
-        }
+        limit(&self.cfg.limits, self.commanded, t, dt)
     }
 
     /// A wheel asked for at least 0.1 m/s that turns at less than a fifth of it for a
@@ -495,8 +489,19 @@ const DETOUR_HOLD_MS: u32 = 350;
 /// A detour's point is made for at this gain (1/s) and at most this speed (m/s): a way
 /// point, passed at pace (the slot runs on meanwhile), slowing only in its last 0.35 m;
 /// the ring still caps the speed toward what it sees.
-const DETOUR_GAIN: f32 = 2.0;
-const DETOUR_SPEED: f32 = 0.7;
+pub const DETOUR_GAIN: f32 = 2.0;
+pub const DETOUR_SPEED: f32 = 0.7;
+
+/// `t` within the speed and turn-rate limits, and within the acceleration limit from
+/// `last`, the command `dt` before (the base station rolls a detour out with it).
+pub fn limit(l: &Limits, last: Twist, t: Twist, dt: f32) -> Twist {
+    let v = math::clamp(t.v, -l.max_reverse, l.max_v);
+    let v = math::approach(last.v, v, l.max_accel * dt);
+    Twist {
+        v,
+        omega: math::clamp(t.omega, -l.max_omega, l.max_omega),
+    }
+}
 
 /// A wheel that does not follow its set-point this long is stalled, ms.
 const STALL_MS: u32 = 1000;

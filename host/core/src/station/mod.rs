@@ -110,6 +110,8 @@ pub struct StationConfig {
     pub reverse_speed: f64,
     /// How far ahead of a follower's centre its control point is (the L-φ law's d), m.
     pub control_offset: f64,
+    /// A follower's speed, turn-rate and acceleration limits, as its firmware has them.
+    pub follower_limits: control_core::config::Limits,
 }
 
 impl StationConfig {
@@ -134,6 +136,7 @@ impl StationConfig {
             yield_brake: 0.8 * s.robot.max_accel,
             reverse_speed: 0.8 * s.robot.max_reverse_speed,
             control_offset: s.follower.d,
+            follower_limits: s.robot_config().limits,
         }
     }
 }

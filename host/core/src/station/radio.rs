@@ -254,6 +254,7 @@ impl BaseStation {
             footprint: self.guidance.formation().spec().footprint,
             offset: self.cfg.control_offset,
             brake: self.cfg.yield_brake,
+            limits: self.cfg.follower_limits,
         };
         let mut told = self.spacing.step(now_ms, &fleet, slots, &self.world);
         if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {

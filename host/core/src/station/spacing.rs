@@ -11,6 +11,9 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
+use control_core::config::Limits;
+use control_core::controller::{self, DETOUR_GAIN, DETOUR_SPEED};
+use control_core::{follower, math, Pose, Twist};
 use glam::DVec2;
 
 use crate::map::Map;
@@ -35,6 +38,11 @@ const SET_OFF_M: f64 = 0.1;
 /// What a stop allows for the station's delay: the telemetry's age and the command's
 /// trip (one period each), s.
 const LATENCY_S: f64 = 0.2;
+/// A step aside is rolled out this long, in steps of a control period, s.
+const STEP_ROLLOUT_S: f32 = 3.0;
+const STEP_DT: f32 = 0.1;
+/// What a step aside may close on a robot within touching distance, rounding aside, m.
+const STEP_SLACK_M: f64 = 0.01;
 
 /// One robot as the station estimates it now.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -338,6 +346,8 @@ pub struct Fleet<'a> {
     pub offset: f64,
     /// How hard a robot may brake, m/s².
     pub brake: f64,
+    /// A follower's speed, turn-rate and acceleration limits (its firmware's).
+    pub limits: Limits,
 }
 
 /// The follower standing nearest on `held`'s way, and the point (for its control point)
@@ -361,8 +371,51 @@ fn room_for(held: &Body, sign: f64, fleet: &Fleet, map: &Map) -> Option<(u16, DV
         .iter()
         .filter(|r| r.id != other.id)
         .all(|r| r.position.distance(centre) >= reach);
-    (free_of_robots && map.clearance(centre, need) >= need)
-        .then(|| (other.id, centre + out * fleet.offset))
+    let point = centre + out * fleet.offset;
+    (free_of_robots && map.clearance(centre, need) >= need && steps_clear(other, point, fleet))
+        .then_some((other.id, point))
+}
+
+/// Whether `stepper`, standing, keeps from every other robot all the way while its control
+/// point makes for `point` as its firmware drives a detour: none comes within [`KEEP_M`]
+/// beyond both footprints, nor, where it is that near already, nearer than now. A
+/// differential drive brings its control point aside by swinging its body round: a
+/// follower stepping aside backed its flank into the one held for it, where neither ring
+/// looks (plaza-0.2-social-seed1033).
+fn steps_clear(stepper: &Body, point: DVec2, fleet: &Fleet) -> bool {
+    let reach = 2.0 * fleet.footprint + KEEP_M;
+    let least: Vec<(DVec2, f64)> = fleet
+        .robots
+        .iter()
+        .filter(|r| r.id != stepper.id)
+        .map(|r| (r.position, r.position.distance(stepper.position).min(reach)))
+        .collect();
+    let target = (point.x as f32, point.y as f32);
+    let (x, y) = (stepper.position.x as f32, stepper.position.y as f32);
+    let mut pose = Pose::new(x, y, stepper.heading as f32);
+    let mut twist = Twist::ZERO;
+    for _ in 0..(STEP_ROLLOUT_S / STEP_DT) as usize {
+        let asked = follower::toward(
+            target,
+            &pose,
+            fleet.offset as f32,
+            DETOUR_GAIN,
+            DETOUR_SPEED,
+        );
+        twist = controller::limit(&fleet.limits, twist, asked, STEP_DT);
+        let (s, c) = math::sin_cos(pose.heading + 0.5 * twist.omega * STEP_DT);
+        pose.x += twist.v * STEP_DT * c;
+        pose.y += twist.v * STEP_DT * s;
+        pose.heading = math::wrap_angle(pose.heading + twist.omega * STEP_DT);
+        let centre = DVec2::new(pose.x as f64, pose.y as f64);
+        if least
+            .iter()
+            .any(|(p, least)| centre.distance(*p) < least - STEP_SLACK_M)
+        {
+            return false;
+        }
+    }
+    true
 }
 
 #[cfg(test)]
@@ -426,6 +479,7 @@ mod tests {
             footprint: FP,
             offset: 0.2,
             brake: 0.8,
+            limits: control_core::RobotConfig::DEFAULT.limits,
         }
     }
 
@@ -494,6 +548,27 @@ mod tests {
         s.step(0, &fleet(&[one, two]), &[], &wall);
         let two = Body { v: 0.0, ..two };
         assert_eq!(s.step(1500, &fleet(&[one, two]), &[], &wall).len(), 1);
+    }
+
+    #[test]
+    fn a_follower_steps_aside_only_where_its_body_swings_clear() {
+        // plaza-0.2-social-seed1033 at 241.5 s: follower 1 is held, its way to its slot
+        // (-2.2 m, +1.0 m) running into follower 2, who stands 0.59 m off (footprints
+        // 0.04 m apart) facing 117°. Its control point to be sent aside, behind it and
+        // to its right, follower 2 would back and swing its flank into follower 1.
+        let one = body(1, 0.0, 0.0, 129.5, 0.0);
+        let slot = [(1, DVec2::new(-2.2, 1.0))];
+        let facing = |deg| body(2, -0.525, -0.27, deg, 0.0);
+        let sent = |two: Body| {
+            let mut s = Spacing::default();
+            s.step(0, &fleet(&[one, two]), &slot, &open());
+            s.step(1500, &fleet(&[one, two]), &slot, &open())
+                .iter()
+                .any(|t| t.id == 2 && t.order == Order::MakeRoom)
+        };
+        assert!(!sent(facing(117.0)));
+        // Facing the way it is sent (away from follower 1's way), it drives out clear.
+        assert!(sent(facing(-115.0)));
     }
 
     #[test]
