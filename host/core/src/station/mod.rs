@@ -110,8 +110,9 @@ pub struct StationConfig {
     pub reverse_speed: f64,
     /// How far ahead of a follower's centre its control point is (the L-φ law's d), m.
     pub control_offset: f64,
-    /// A follower's speed, turn-rate and acceleration limits, as its firmware has them.
-    pub follower_limits: control_core::config::Limits,
+    /// The robots' control configuration (limits, the L-φ law's gains), as their firmware
+    /// has it.
+    pub robot: control_core::RobotConfig,
 }
 
 impl StationConfig {
@@ -136,7 +137,7 @@ impl StationConfig {
             yield_brake: 0.8 * s.robot.max_accel,
             reverse_speed: 0.8 * s.robot.max_reverse_speed,
             control_offset: s.follower.d,
-            follower_limits: s.robot_config().limits,
+            robot: s.robot_config(),
         }
     }
 }

@@ -254,7 +254,8 @@ impl BaseStation {
             footprint: self.guidance.formation().spec().footprint,
             offset: self.cfg.control_offset,
             brake: self.cfg.yield_brake,
-            limits: self.cfg.follower_limits,
+            robot: self.cfg.robot,
+            leader: leader_snapshot(robots, self.cfg.leader, self.last_command),
         };
         let mut told = self.spacing.step(now_ms, &fleet, slots, &self.world);
         if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {
@@ -295,4 +296,18 @@ impl BaseStation {
             &Message::Detour(Detour { x_mm, y_mm }),
         );
     }
+}
+
+/// The leader as its followers' law takes it: where it is, and the twist it was last told.
+fn leader_snapshot(
+    robots: &[spacing::Body],
+    leader: u16,
+    twist: (f64, f64),
+) -> Option<control_core::follower::LeaderSnapshot> {
+    let l = robots.iter().find(|b| b.id == leader)?;
+    Some(control_core::follower::LeaderSnapshot {
+        pose: control_core::Pose::new(l.position.x as f32, l.position.y as f32, l.heading as f32),
+        v: twist.0 as f32,
+        omega: twist.1 as f32,
+    })
 }

@@ -11,9 +11,9 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use control_core::config::Limits;
 use control_core::controller::{self, DETOUR_GAIN, DETOUR_SPEED};
-use control_core::{follower, math, Pose, Twist};
+use control_core::follower::{self, LeaderSnapshot, SlotRef};
+use control_core::{math, Pose, RobotConfig, Twist};
 use glam::DVec2;
 
 use crate::map::Map;
@@ -38,9 +38,18 @@ const SET_OFF_M: f64 = 0.1;
 /// What a stop allows for the station's delay: the telemetry's age and the command's
 /// trip (one period each), s.
 const LATENCY_S: f64 = 0.2;
+/// A follower turning on the spot faces its slot within this, degrees.
+const FACING_DEG: f64 = 20.0;
+/// A follower turns to face a slot at least this far from its control point, m (a nearer
+/// one is where it stands: the way there swings round as it turns).
+const TURN_FROM_M: f64 = 0.5;
 /// A step aside is rolled out this long, in steps of a control period, s.
 const STEP_ROLLOUT_S: f32 = 3.0;
 const STEP_DT: f32 = 0.1;
+/// A standing follower's setting off is rolled out this long, s, against the robots
+/// within this beyond touching distance, m.
+const SET_OFF_ROLLOUT_S: f32 = 1.0;
+const SET_OFF_NEAR_M: f64 = 0.2;
 /// What a step aside may close on a robot within touching distance, rounding aside, m.
 const STEP_SLACK_M: f64 = 0.01;
 
@@ -175,6 +184,9 @@ struct Held {
     since_ms: u32,
     to_slot: Option<f64>,
     point: DVec2,
+    /// Where its control point makes for to turn on the spot to face its slot, fixed when
+    /// the turn began ([`turn`]).
+    turn: Option<DVec2>,
 }
 
 /// The followers held because their way runs into another robot, and those stepping aside
@@ -232,21 +244,37 @@ impl Spacing {
             let way = to_slot.map_or(*f, |heading| Body { heading, ..*f });
             let hold = if was.is_some() || to_slot.is_some() {
                 free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M
+                    || to_slot.is_some() && !sets_off_clear(f, slots, fleet)
             } else {
                 f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake)
             };
-            if !hold {
-                continue;
-            }
+            let stop_at = was.map_or_else(|| hold_point(f, fleet), |h| h.point);
+            // Held moving, it is judged on its heading; standing, it turns to its slot.
+            let turning = was.and_then(|h| h.turn);
+            let turn = match was {
+                Some(h) if hold && h.to_slot.is_none() && (standing || turning.is_some()) => {
+                    turn(f, turning, slots, fleet)
+                }
+                _ => Turn::Stay,
+            };
+            // Once it has turned, it is held where it stands now.
+            let here = f.position + DVec2::from_angle(f.heading) * fleet.offset;
+            let (point, turning, stop_at) = match turn {
+                Turn::Go => continue,
+                Turn::To(point) => (point, Some(point), here),
+                Turn::Stay if hold && turning.is_some() => (here, None, here),
+                Turn::Stay if hold => (stop_at, None, stop_at),
+                Turn::Stay => continue,
+            };
             let since_ms = was.map_or(now_ms, |h| h.since_ms);
-            let point = was.map_or_else(|| hold_point(f, fleet), |h| h.point);
             held.insert(
                 f.id,
                 Held {
                     sign,
                     since_ms,
                     to_slot,
-                    point,
+                    point: stop_at,
+                    turn: turning,
                 },
             );
             out.push(Told {
@@ -328,6 +356,51 @@ fn way_to_slot(f: &Body, slots: &[(u16, DVec2)], offset: f64) -> Option<f64> {
     (to.length() > SET_OFF_M).then(|| to.to_angle())
 }
 
+/// What a follower held while it moved does once it stands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Turn {
+    /// It faces its slot and the way there is clear: it goes.
+    Go,
+    /// It turns on the spot to face its slot: its control point makes for this point.
+    To(DVec2),
+    /// It stays as it stands.
+    Stay,
+}
+
+/// A follower held while it moved stands with another robot at its flank, on its heading
+/// but not on its way to its slot. Judged on its heading it is held for good; judged on
+/// the way to its slot it is let go, and the law drives it on along its heading while it
+/// turns, into that flank. Two followers so held, each on the other's way, waited for
+/// each other for 230 s (plaza-0.2-social-seed1005). It turns on the spot first, where
+/// that swings clear, and goes once it faces its slot with the way clear.
+/// `turning`: the point of a turn under way.
+fn turn(f: &Body, turning: Option<DVec2>, slots: &[(u16, DVec2)], fleet: &Fleet) -> Turn {
+    let Some((_, slot)) = slots.iter().find(|(id, _)| *id == f.id) else {
+        return Turn::Stay;
+    };
+    let control = f.position + DVec2::from_angle(f.heading) * fleet.offset;
+    if slot.distance(control) < TURN_FROM_M {
+        return Turn::Stay;
+    }
+    let way = (*slot - control).to_angle();
+    let facing = crate::geometry::wrap_angle(way - f.heading).abs() <= FACING_DEG.to_radians();
+    let along = Body { heading: way, ..*f };
+    if facing
+        && free(&along, 1.0, fleet.robots, fleet.footprint) >= CLEAR_M
+        && sets_off_clear(f, slots, fleet)
+    {
+        return Turn::Go;
+    }
+    if let Some(point) = turning {
+        return if facing { Turn::Stay } else { Turn::To(point) };
+    }
+    let point = f.position + DVec2::from_angle(way) * fleet.offset;
+    if facing || !steps_clear(f, point, fleet) {
+        return Turn::Stay;
+    }
+    Turn::To(point)
+}
+
 /// Where a held follower's control point makes for: the point it can stop at.
 fn hold_point(f: &Body, fleet: &Fleet) -> DVec2 {
     let stop = stopping(f.v, fleet.brake) * f.v.signum();
@@ -346,8 +419,10 @@ pub struct Fleet<'a> {
     pub offset: f64,
     /// How hard a robot may brake, m/s².
     pub brake: f64,
-    /// A follower's speed, turn-rate and acceleration limits (its firmware's).
-    pub limits: Limits,
+    /// The followers' control configuration (limits, the L-φ law's gains).
+    pub robot: RobotConfig,
+    /// The leader as the followers' law takes it, if known.
+    pub leader: Option<LeaderSnapshot>,
 }
 
 /// The follower standing nearest on `held`'s way, and the point (for its control point)
@@ -383,26 +458,79 @@ fn room_for(held: &Body, sign: f64, fleet: &Fleet, map: &Map) -> Option<(u16, DV
 /// follower stepping aside backed its flank into the one held for it, where neither ring
 /// looks (plaza-0.2-social-seed1033).
 fn steps_clear(stepper: &Body, point: DVec2, fleet: &Fleet) -> bool {
+    let target = (point.x as f32, point.y as f32);
+    let d = fleet.offset as f32;
+    let law =
+        |_: f32, pose: &Pose| Some(follower::toward(target, pose, d, DETOUR_GAIN, DETOUR_SPEED));
+    swings_clear(stepper, fleet, STEP_ROLLOUT_S, f64::INFINITY, law)
+}
+
+/// Whether a standing follower setting off for its slot swings clear of the robots beside
+/// it over its first [`SET_OFF_ROLLOUT_S`], driving its own L-φ law toward the slot as
+/// it stands from the leader now, the leader driving on as it was last told. Its way
+/// judged as a straight line to the slot, a follower let go backed and swung its flank
+/// into one standing beside it (plaza-0.2-social-seed1053).
+fn sets_off_clear(f: &Body, slots: &[(u16, DVec2)], fleet: &Fleet) -> bool {
+    let (Some(leader), Some((_, slot))) = (fleet.leader, slots.iter().find(|(id, _)| *id == f.id))
+    else {
+        return true;
+    };
+    let (l, phi) = follower::as_slot(&leader.pose, (slot.x as f32, slot.y as f32));
+    let slot = SlotRef {
+        l,
+        phi,
+        ..SlotRef::default()
+    };
+    let gains = fleet.robot.gains;
+    let law =
+        |t: f32, pose: &Pose| follower::lphi_law(&leader.predict(t), pose, &slot, &gains).ok();
+    let near = 2.0 * fleet.footprint + KEEP_M + SET_OFF_NEAR_M;
+    // What its ring sees ahead or behind is the ring's to keep from.
+    let heading = DVec2::from_angle(f.heading);
+    let unseen: Vec<Body> = fleet
+        .robots
+        .iter()
+        .filter(|r| {
+            let to = r.position - f.position;
+            to.dot(heading).abs() < to.length() * RING_DEG.to_radians().cos()
+        })
+        .copied()
+        .collect();
+    let fleet = Fleet {
+        robots: &unseen,
+        ..*fleet
+    };
+    swings_clear(f, &fleet, SET_OFF_ROLLOUT_S, near, law)
+}
+
+/// Whether `stepper`, standing, driving `law` (the twist it asks, at a time from now and a
+/// pose) through its firmware's limits for `horizon_s`, keeps from every robot within
+/// `near` of it now: none comes within [`KEEP_M`] beyond both footprints, nor, where it is
+/// that near already, nearer than now.
+fn swings_clear(
+    stepper: &Body,
+    fleet: &Fleet,
+    horizon_s: f32,
+    near: f64,
+    law: impl Fn(f32, &Pose) -> Option<Twist>,
+) -> bool {
     let reach = 2.0 * fleet.footprint + KEEP_M;
     let least: Vec<(DVec2, f64)> = fleet
         .robots
         .iter()
         .filter(|r| r.id != stepper.id)
-        .map(|r| (r.position, r.position.distance(stepper.position).min(reach)))
+        .map(|r| (r.position, r.position.distance(stepper.position)))
+        .filter(|(_, d)| *d <= near)
+        .map(|(p, d)| (p, d.min(reach)))
         .collect();
-    let target = (point.x as f32, point.y as f32);
     let (x, y) = (stepper.position.x as f32, stepper.position.y as f32);
     let mut pose = Pose::new(x, y, stepper.heading as f32);
     let mut twist = Twist::ZERO;
-    for _ in 0..(STEP_ROLLOUT_S / STEP_DT) as usize {
-        let asked = follower::toward(
-            target,
-            &pose,
-            fleet.offset as f32,
-            DETOUR_GAIN,
-            DETOUR_SPEED,
-        );
-        twist = controller::limit(&fleet.limits, twist, asked, STEP_DT);
+    for k in 0..(horizon_s / STEP_DT) as usize {
+        let Some(asked) = law(k as f32 * STEP_DT, &pose) else {
+            return true;
+        };
+        twist = controller::limit(&fleet.robot.limits, twist, asked, STEP_DT);
         let (s, c) = math::sin_cos(pose.heading + 0.5 * twist.omega * STEP_DT);
         pose.x += twist.v * STEP_DT * c;
         pose.y += twist.v * STEP_DT * s;
@@ -479,7 +607,8 @@ mod tests {
             footprint: FP,
             offset: 0.2,
             brake: 0.8,
-            limits: control_core::RobotConfig::DEFAULT.limits,
+            robot: RobotConfig::DEFAULT,
+            leader: None,
         }
     }
 
@@ -569,6 +698,81 @@ mod tests {
         assert!(!sent(facing(117.0)));
         // Facing the way it is sent (away from follower 1's way), it drives out clear.
         assert!(sent(facing(-115.0)));
+    }
+
+    #[test]
+    fn a_standing_follower_sets_off_only_where_its_own_law_swings_it_clear() {
+        // plaza-0.2-social-seed1053: follower 2 stands facing −112°, its slot 1.3 m away
+        // 19° to its left; follower 1 stands 0.75 m off 41° to its left, just beyond its
+        // ring's beams; the leader drives on at 0.09 m/s, 1.9 m off.
+        fn with(bodies: &[Body]) -> Fleet<'_> {
+            Fleet {
+                leader: Some(LeaderSnapshot {
+                    pose: Pose::new(20.652, 16.104, -0.073),
+                    v: 0.09,
+                    omega: 0.0,
+                }),
+                ..fleet(bodies)
+            }
+        }
+        let two = Body::at(2, 18.750, 16.523, -112.2, 0.0);
+        let one = Body::at(1, 18.993, 15.817, 12.9, 0.0);
+        let slot = [(2, DVec2::new(18.606, 15.265))];
+        // Judged as a straight line, the way to its slot is clear: follower 1 is within
+        // 40° of it, the ring's to see…
+        let way = way_to_slot(&two, &slot, 0.2).unwrap();
+        assert!(
+            free(
+                &Body {
+                    heading: way,
+                    ..two
+                },
+                1.0,
+                &[one, two],
+                FP
+            ) >= CLEAR_M
+        );
+        // …but driving its law it turns left as it goes, toward follower 1: it is held.
+        let bodies = [one, two];
+        assert!(!sets_off_clear(&two, &slot, &with(&bodies)));
+        let told = Spacing::default().step(0, &with(&bodies), &slot, &open());
+        assert!(told.iter().any(|t| t.id == 2 && t.order == Order::Hold));
+        // With follower 1 a metre off, it sets off.
+        let far = Body::at(1, 19.3, 15.8, 12.9, 0.0);
+        assert!(sets_off_clear(&two, &slot, &with(&[far, two])));
+    }
+
+    #[test]
+    fn two_followers_held_for_each_other_turn_to_their_slots_and_go() {
+        // plaza-0.2-social-seed1005 at 100 s: follower 1, held while it drove at −73°,
+        // has follower 2 at its flank on that heading, though not on its way to its slot
+        // (−19°); follower 2's way to its slot runs past follower 1's flank. Each was held
+        // for the other, for good.
+        let slots = [(1, DVec2::new(16.58, 11.21)), (2, DVec2::new(15.23, 11.26))];
+        let two = body(2, 13.965, 11.668, 136.5, 0.0);
+        let driving = body(1, 14.425, 12.110, -72.8, 0.1);
+        let mut s = Spacing::default();
+        let told = s.step(0, &fleet(&[driving, two]), &slots, &open());
+        assert_eq!(told.len(), 2, "{told:?}");
+        // Standing, follower 1 turns on the spot: its control point is sent 0.2 m from
+        // its centre on the way to its slot.
+        let one = Body { v: 0.0, ..driving };
+        let told = s.step(100, &fleet(&[one, two]), &slots, &open());
+        let t = told.iter().find(|t| t.id == 1).unwrap();
+        let control = one.position + DVec2::from_angle(one.heading) * 0.2;
+        let way = (slots[0].1 - control).to_angle();
+        assert!(
+            t.point
+                .distance(one.position + DVec2::from_angle(way) * 0.2)
+                < 1e-9
+        );
+        // Facing its slot, with the way there clear, it goes.
+        let turned = Body {
+            heading: way,
+            ..one
+        };
+        let told = s.step(200, &fleet(&[turned, two]), &slots, &open());
+        assert!(told.iter().all(|t| t.id != 1), "{told:?}");
     }
 
     #[test]
