@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 
 use glam::DVec2;
 
-use super::spacing::{Body, RING_DEG, STANDING};
+use super::spacing::{Body, STANDING};
 use crate::geometry::closest_on_segment;
 
 /// A follower whose footprint is within this of the leader's stands in front of it, m.
@@ -72,7 +72,6 @@ fn in_the_way(fleet: &Fleet) -> Vec<u16> {
     if l.v.abs() > STANDING {
         return Vec::new();
     }
-    let heading = DVec2::from_angle(l.heading);
     let touching = 2.0 * fleet.footprint + NEAR_M;
     let on_way = 2.0 * fleet.footprint + ON_WAY_M;
     fleet
@@ -82,7 +81,7 @@ fn in_the_way(fleet: &Fleet) -> Vec<u16> {
             let to = f.position - l.position;
             f.v.abs() <= STANDING
                 && to.length() < touching
-                && to.dot(heading) >= to.length() * RING_DEG.to_radians().cos()
+                && l.sees(1.0, f.position)
                 && near_way(fleet.ahead, f.position, on_way)
         })
         .map(|f| f.id)

@@ -20,7 +20,7 @@ use crate::map::Map;
 
 /// The ring's outer beams, degrees off the way the robot drives (`hil-sim`'s ring): a
 /// robot whose centre is within them is the ring's to keep from.
-pub(super) const RING_DEG: f64 = 40.0;
+const RING_DEG: f64 = 40.0;
 /// What a robot keeps from another beyond both footprints, m.
 const KEEP_M: f64 = 0.05;
 /// A held follower goes on where its way is this clear, m.
@@ -78,6 +78,22 @@ impl Body {
     fn velocity(&self) -> DVec2 {
         DVec2::from_angle(self.heading) * self.v
     }
+
+    /// Its control point, `offset` ahead of its centre.
+    fn control(&self, offset: f64) -> DVec2 {
+        self.position + DVec2::from_angle(self.heading) * offset
+    }
+
+    /// Whether `p` is within its ring's beams ahead (`sign` 1) or behind (−1).
+    pub(super) fn sees(&self, sign: f64, p: DVec2) -> bool {
+        let to = p - self.position;
+        to.dot(DVec2::from_angle(self.heading) * sign) >= to.length() * RING_DEG.to_radians().cos()
+    }
+}
+
+/// The slot (for its control point) of follower `id`, if it has one.
+fn slot_of(slots: &[(u16, DVec2)], id: u16) -> Option<DVec2> {
+    slots.iter().find(|(f, _)| *f == id).map(|(_, slot)| *slot)
 }
 
 /// What lies on `body`'s way along its heading (`sign` 1) or backward (`sign` −1) where
@@ -100,8 +116,7 @@ fn on_way<'a>(
             let to = o.position - body.position;
             let along = to.dot(dir);
             let aside2 = to.length_squared() - along * along;
-            let seen = along >= to.length() * RING_DEG.to_radians().cos();
-            if along <= 0.0 || seen || aside2 >= reach * reach {
+            if along <= 0.0 || body.sees(sign, o.position) || aside2 >= reach * reach {
                 return None;
             }
             let gap = (along - (reach * reach - aside2).sqrt()).max(0.0);
@@ -258,7 +273,7 @@ impl Spacing {
                 _ => Turn::Stay,
             };
             // Once it has turned, it is held where it stands now.
-            let here = f.position + DVec2::from_angle(f.heading) * fleet.offset;
+            let here = f.control(fleet.offset);
             let (point, turning, stop_at) = match turn {
                 Turn::Go => continue,
                 Turn::To(point) => (point, Some(point), here),
@@ -327,10 +342,10 @@ impl Spacing {
         let mut held = BTreeSet::new();
         let mut out = Vec::new();
         for f in fleet.followers {
-            let Some((_, slot)) = slots.iter().find(|(id, _)| *id == f.id) else {
+            let Some(slot) = slot_of(slots, f.id) else {
                 continue;
             };
-            let centre = *slot - DVec2::from_angle(f.heading) * fleet.offset;
+            let centre = slot - DVec2::from_angle(f.heading) * fleet.offset;
             if centre.distance(leader.position) >= reach {
                 continue;
             }
@@ -350,9 +365,7 @@ impl Spacing {
 /// The way from a follower's control point to its slot (radians), if it has one and is
 /// not there already.
 fn way_to_slot(f: &Body, slots: &[(u16, DVec2)], offset: f64) -> Option<f64> {
-    let (_, slot) = slots.iter().find(|(id, _)| *id == f.id)?;
-    let control = f.position + DVec2::from_angle(f.heading) * offset;
-    let to = *slot - control;
+    let to = slot_of(slots, f.id)? - f.control(offset);
     (to.length() > SET_OFF_M).then(|| to.to_angle())
 }
 
@@ -375,14 +388,14 @@ enum Turn {
 /// that swings clear, and goes once it faces its slot with the way clear.
 /// `turning`: the point of a turn under way.
 fn turn(f: &Body, turning: Option<DVec2>, slots: &[(u16, DVec2)], fleet: &Fleet) -> Turn {
-    let Some((_, slot)) = slots.iter().find(|(id, _)| *id == f.id) else {
+    let Some(slot) = slot_of(slots, f.id) else {
         return Turn::Stay;
     };
-    let control = f.position + DVec2::from_angle(f.heading) * fleet.offset;
+    let control = f.control(fleet.offset);
     if slot.distance(control) < TURN_FROM_M {
         return Turn::Stay;
     }
-    let way = (*slot - control).to_angle();
+    let way = (slot - control).to_angle();
     let facing = crate::geometry::wrap_angle(way - f.heading).abs() <= FACING_DEG.to_radians();
     let along = Body { heading: way, ..*f };
     if facing
@@ -462,7 +475,7 @@ fn steps_clear(stepper: &Body, point: DVec2, fleet: &Fleet) -> bool {
     let d = fleet.offset as f32;
     let law =
         |_: f32, pose: &Pose| Some(follower::toward(target, pose, d, DETOUR_GAIN, DETOUR_SPEED));
-    swings_clear(stepper, fleet, STEP_ROLLOUT_S, f64::INFINITY, law)
+    swings_clear(stepper, fleet, STEP_ROLLOUT_S, |_| true, law)
 }
 
 /// Whether a standing follower setting off for its slot swings clear of the robots beside
@@ -471,8 +484,7 @@ fn steps_clear(stepper: &Body, point: DVec2, fleet: &Fleet) -> bool {
 /// judged as a straight line to the slot, a follower let go backed and swung its flank
 /// into one standing beside it (plaza-0.2-social-seed1053).
 fn sets_off_clear(f: &Body, slots: &[(u16, DVec2)], fleet: &Fleet) -> bool {
-    let (Some(leader), Some((_, slot))) = (fleet.leader, slots.iter().find(|(id, _)| *id == f.id))
-    else {
+    let (Some(leader), Some(slot)) = (fleet.leader, slot_of(slots, f.id)) else {
         return true;
     };
     let (l, phi) = follower::as_slot(&leader.pose, (slot.x as f32, slot.y as f32));
@@ -486,42 +498,31 @@ fn sets_off_clear(f: &Body, slots: &[(u16, DVec2)], fleet: &Fleet) -> bool {
         |t: f32, pose: &Pose| follower::lphi_law(&leader.predict(t), pose, &slot, &gains).ok();
     let near = 2.0 * fleet.footprint + KEEP_M + SET_OFF_NEAR_M;
     // What its ring sees ahead or behind is the ring's to keep from.
-    let heading = DVec2::from_angle(f.heading);
-    let unseen: Vec<Body> = fleet
-        .robots
-        .iter()
-        .filter(|r| {
-            let to = r.position - f.position;
-            to.dot(heading).abs() < to.length() * RING_DEG.to_radians().cos()
-        })
-        .copied()
-        .collect();
-    let fleet = Fleet {
-        robots: &unseen,
-        ..*fleet
+    let watched = |r: &Body| {
+        !f.sees(1.0, r.position)
+            && !f.sees(-1.0, r.position)
+            && r.position.distance(f.position) <= near
     };
-    swings_clear(f, &fleet, SET_OFF_ROLLOUT_S, near, law)
+    swings_clear(f, fleet, SET_OFF_ROLLOUT_S, watched, law)
 }
 
 /// Whether `stepper`, standing, driving `law` (the twist it asks, at a time from now and a
-/// pose) through its firmware's limits for `horizon_s`, keeps from every robot within
-/// `near` of it now: none comes within [`KEEP_M`] beyond both footprints, nor, where it is
+/// pose) through its firmware's limits for `horizon_s`, keeps from every other robot that
+/// it `watches`: none comes within [`KEEP_M`] beyond both footprints, nor, where it is
 /// that near already, nearer than now.
 fn swings_clear(
     stepper: &Body,
     fleet: &Fleet,
     horizon_s: f32,
-    near: f64,
+    watches: impl Fn(&Body) -> bool,
     law: impl Fn(f32, &Pose) -> Option<Twist>,
 ) -> bool {
     let reach = 2.0 * fleet.footprint + KEEP_M;
     let least: Vec<(DVec2, f64)> = fleet
         .robots
         .iter()
-        .filter(|r| r.id != stepper.id)
-        .map(|r| (r.position, r.position.distance(stepper.position)))
-        .filter(|(_, d)| *d <= near)
-        .map(|(p, d)| (p, d.min(reach)))
+        .filter(|r| r.id != stepper.id && watches(r))
+        .map(|r| (r.position, r.position.distance(stepper.position).min(reach)))
         .collect();
     let (x, y) = (stepper.position.x as f32, stepper.position.y as f32);
     let mut pose = Pose::new(x, y, stepper.heading as f32);
