@@ -3,7 +3,9 @@
 //! them), and of formations of 10, 100 and 1,000 robots on an open map (30 s simulated
 //! each).
 //! `cargo bench -p hil-sim --bench sim_speed` (prints a table; not a criterion bench:
-//! one run of a 1,000-robot fleet is the measurement).
+//! each scenario runs at least 3 times and for 3 s, and the table gives the median run
+//! and the range). A word after `--` runs only the scenarios whose name holds it:
+//! `cargo bench -p hil-sim --bench sim_speed -- 20p`.
 
 use std::time::Instant;
 
@@ -87,14 +89,26 @@ fn fleet(n: usize) -> Scenario {
     s
 }
 
-fn measure(s: Scenario) -> (String, usize, f64, f64) {
-    let name = s.name.clone();
-    let robots = s.robots.len();
-    let start = Instant::now();
-    let (report, _) = simulate(s, SimOptions::new(1)).unwrap();
-    let wall = start.elapsed().as_secs_f64();
-    (name, robots, report.sim_time_s, wall)
+/// Runs `s` at least [`MIN_RUNS`] times and until [`MIN_WALL_S`] have passed (on a
+/// shared machine one 0.2 s run moves by a third): its name, robots, simulated time,
+/// runs, and the median, least and greatest wall time of a run.
+fn measure(s: Scenario) -> (String, usize, f64, usize, [f64; 3]) {
+    let (name, robots) = (s.name.clone(), s.robots.len());
+    let (mut walls, mut sim) = (Vec::new(), 0.0);
+    while walls.len() < MIN_RUNS || walls.iter().sum::<f64>() < MIN_WALL_S {
+        let start = Instant::now();
+        let (report, _) = simulate(s.clone(), SimOptions::new(1)).unwrap();
+        walls.push(start.elapsed().as_secs_f64());
+        sim = report.sim_time_s;
+    }
+    walls.sort_by(f64::total_cmp);
+    let median = walls[walls.len() / 2];
+    let spread = [median, walls[0], walls[walls.len() - 1]];
+    (name, robots, sim, walls.len(), spread)
 }
+
+const MIN_RUNS: usize = 3;
+const MIN_WALL_S: f64 = 3.0;
 
 fn main() {
     // `cargo test` runs benches with --bench absent: do nothing then.
@@ -102,20 +116,29 @@ fn main() {
         return;
     }
     println!(
-        "{:<18} {:>7} {:>10} {:>10} {:>12} {:>14}",
-        "scenario", "robots", "sim (s)", "wall (s)", "real-time ×", "µs/robot·s"
+        "{:<20} {:>6} {:>8} {:>5} {:>16} {:>18} {:>11}",
+        "scenario", "robots", "sim (s)", "runs", "wall (s) median", "real-time ×", "µs/robot·s"
     );
-    let runs = [
-        measure(paper_obstacles()),
-        measure(paper_with_pedestrians()),
-        measure(fleet(10)),
-        measure(fleet(100)),
-        measure(fleet(1000)),
+    let filter = std::env::args()
+        .skip(1)
+        .find(|a| !a.starts_with("--"))
+        .unwrap_or_default();
+    let scenarios: [fn() -> Scenario; 5] = [
+        paper_obstacles,
+        paper_with_pedestrians,
+        || fleet(10),
+        || fleet(100),
+        || fleet(1000),
     ];
-    for (name, robots, sim, wall) in runs {
+    let runs = scenarios
+        .iter()
+        .map(|make| make())
+        .filter(|s| s.name.contains(&filter))
+        .map(measure);
+    for (name, robots, sim, n, [wall, least, most]) in runs {
         println!(
-            "{name:<18} {robots:>7} {sim:>10.1} {wall:>10.3} {:>12.0} {:>14.2}",
-            sim / wall,
+            "{name:<20} {robots:>6} {sim:>8.1} {n:>5} {wall:>16.3} {:>18} {:>11.2}",
+            format!("{:.0} ({:.0}–{:.0})", sim / wall, sim / most, sim / least),
             wall * 1e6 / (robots as f64 * sim)
         );
     }

@@ -8,7 +8,7 @@
 //! blend at the sample's instant. Clearance = footprint to obstacle surface. Robot separation = footprint
 //! to footprint.
 
-use std::collections::HashSet;
+use rustc_hash::FxHashSet;
 
 use base_station::formation::{back_along, Target};
 use base_station::map::Map;
@@ -160,7 +160,7 @@ pub struct Recorder {
     pub min_clearance: f64,
     pub min_separation: f64,
     pub contacts: u32,
-    touching: HashSet<(usize, usize)>,
+    touching: FxHashSet<(usize, usize)>,
     /// The true leader's path: the line's reference.
     path: DrivenPath,
     /// What the robots did among the movers.
@@ -194,7 +194,7 @@ pub struct MoverMeasures {
     pub contacts: Vec<MoverContact>,
     /// Who touched whom: (robot, mover).
     #[serde(skip)]
-    touching: HashSet<(usize, usize)>,
+    touching: FxHashSet<(usize, usize)>,
 }
 
 /// Most mover contacts listed one by one.
@@ -242,7 +242,10 @@ impl MoverMeasures {
                 }
                 let pair = (i, m.index);
                 if gap >= 0.0 {
-                    self.touching.remove(&pair);
+                    // Nearly always apart, and nobody touching: skip the lookup.
+                    if !self.touching.is_empty() {
+                        self.touching.remove(&pair);
+                    }
                 } else if self.touching.insert(pair) {
                     if moving {
                         self.contacts_moving += 1;
@@ -291,7 +294,7 @@ impl Recorder {
             min_clearance: f64::INFINITY,
             min_separation: f64::INFINITY,
             contacts: 0,
-            touching: HashSet::new(),
+            touching: FxHashSet::default(),
             path: DrivenPath::default(),
             movers: MoverMeasures::new(),
             last_us: None,

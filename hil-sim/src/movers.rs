@@ -11,8 +11,7 @@
 //!   what lies behind it pushes it less (`LAMBDA`). People's neighbours are looked up in
 //!   a grid of `CELL` cells, so a plaza of hundreds costs what their neighbourhoods do.
 
-use std::collections::HashMap;
-
+use base_station::cells::{cell_of, CellIndex};
 use base_station::map::Map;
 use base_station::scenario::movers::{
     Behavior, CrowdSpec, MoverKind, MoverShape, MoverSpec, Repeat,
@@ -294,14 +293,13 @@ impl Movers {
     }
 
     /// The movers on the site by grid cell.
-    fn grid(&self, t_s: f64) -> HashMap<(i64, i64), Vec<usize>> {
-        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-        for (i, m) in self.movers.iter().enumerate() {
-            if t_s >= m.start_s {
-                grid.entry(cell(m.position)).or_default().push(i);
-            }
-        }
-        grid
+    fn grid(&self, t_s: f64) -> CellIndex {
+        let on_site = self
+            .movers
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| t_s >= m.start_s);
+        CellIndex::new(CELL, on_site.map(|(i, m)| (cell_of(m.position, CELL), i)))
     }
 
     /// Where mover `i` wants to go and how fast: along its path (or to its crowd's goal),
@@ -363,7 +361,7 @@ impl Movers {
         i: usize,
         t_s: f64,
         span: f64,
-        grid: &HashMap<(i64, i64), Vec<usize>>,
+        grid: &CellIndex,
         robots: &[RobotBody],
         site: &Map,
     ) -> DVec2 {
@@ -384,14 +382,8 @@ impl Movers {
             away * a * (-gap / b).exp() * weight
         };
         let mut force = DVec2::ZERO;
-        let (cx, cy) = cell(m.position);
-        for j in (-1..=1)
-            .flat_map(|dx| (-1..=1).map(move |dy| (cx + dx, cy + dy)))
-            .filter_map(|c| grid.get(&c))
-            .flatten()
-            .filter(|j| **j != i)
-        {
-            let o = &self.movers[*j];
+        for j in grid.around(m.position).filter(|j| *j != i) {
+            let o = &self.movers[j];
             let gap = (o.position - m.position).length() - r - o.shape.reach();
             if gap < INTERACTION {
                 force += push(o.position, gap, A_AGENT, B_AGENT);
@@ -478,14 +470,23 @@ fn heading_round(at: DVec2, reach: f64, goal: DVec2, robots: &[RobotBody]) -> DV
             })
             .fold(look, f64::min)
     };
-    (-9..=9)
-        .map(|k| straight.rotate(DVec2::from_angle(k as f64 * 10f64.to_radians())))
+    turns()
+        .iter()
+        .map(|turn| straight.rotate(*turn))
         .map(|dir| {
             let f = free(dir);
             ((at + dir * f).distance(goal), dir)
         })
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map_or(straight, |(_, dir)| dir)
+}
+
+/// The headings a person weighs, as turns from the goal's: every 10° within 90°.
+fn turns() -> &'static [DVec2; 19] {
+    static TURNS: std::sync::OnceLock<[DVec2; 19]> = std::sync::OnceLock::new();
+    TURNS.get_or_init(|| {
+        std::array::from_fn(|i| DVec2::from_angle((i as f64 - 9.0) * 10f64.to_radians()))
+    })
 }
 
 /// How many seconds ahead a person sees where a robot goes.
@@ -500,10 +501,6 @@ const PASS_ROBOT: f64 = 0.8;
 /// more: someone stands on it, or the way is blocked.
 fn give_up_after(from: DVec2, goal: DVec2, speed: f64) -> f64 {
     2.0 * from.distance(goal) / speed.max(0.1) + 5.0
-}
-
-fn cell(p: DVec2) -> (i64, i64) {
-    ((p.x / CELL).floor() as i64, (p.y / CELL).floor() as i64)
 }
 
 /// A crowd's persons, at random points of its area where the site leaves room and no

@@ -4,8 +4,7 @@
 //! other robots. Beside the leader's scanner ([`crate::scanner`]), the other sensor that
 //! sees the world.
 
-use std::collections::HashMap;
-
+use base_station::cells::CellIndex;
 use base_station::map::Map;
 use glam::DVec2;
 
@@ -45,34 +44,24 @@ pub fn ray_circle(o: DVec2, dir: DVec2, c: DVec2, r: f64) -> Option<f64> {
     (t >= 0.0).then_some(t)
 }
 
-fn cell(p: DVec2) -> (i64, i64) {
-    ((p.x / CELL).floor() as i64, (p.y / CELL).floor() as i64)
-}
-
 /// The robots' positions by grid cell, for neighbour queries.
 pub struct Neighbours {
-    grid: HashMap<(i64, i64), Vec<usize>>,
+    grid: CellIndex,
     at: Vec<DVec2>,
 }
 
 impl Neighbours {
     pub fn new(at: Vec<DVec2>) -> Self {
-        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-        for (i, p) in at.iter().enumerate() {
-            grid.entry(cell(*p)).or_default().push(i);
-        }
+        let grid = CellIndex::of_points(CELL, at.iter().copied());
         Self { grid, at }
     }
 
     /// The robots other than `i` in the cells around it.
     fn around(&self, i: usize) -> Vec<DVec2> {
-        let (cx, cy) = cell(self.at[i]);
-        (-1..=1)
-            .flat_map(|dx| (-1..=1).map(move |dy| (cx + dx, cy + dy)))
-            .filter_map(|c| self.grid.get(&c))
-            .flatten()
-            .filter(|j| **j != i)
-            .map(|j| self.at[*j])
+        self.grid
+            .around(self.at[i])
+            .filter(|j| *j != i)
+            .map(|j| self.at[j])
             .collect()
     }
 }

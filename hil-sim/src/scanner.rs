@@ -19,6 +19,8 @@ pub const RANGE: f64 = 8.0;
 pub struct Scanner {
     /// `None` when the site holds nothing the map does not.
     unmapped: Option<Map>,
+    /// Each beam's direction (a unit vector), worked out once.
+    beams: Vec<DVec2>,
 }
 
 impl Scanner {
@@ -33,7 +35,10 @@ impl Scanner {
                     .collect(),
             )
         });
-        Self { unmapped }
+        let beams = (0..RAYS)
+            .map(|k| DVec2::from_angle(k as f64 * std::f64::consts::TAU / RAYS as f64))
+            .collect();
+        Self { unmapped, beams }
     }
 
     /// One scan from `at` over `site` (everything on it, mapped or not) and the movers
@@ -50,9 +55,9 @@ impl Scanner {
         if unmapped.is_none() && near.is_empty() {
             return Vec::new();
         }
-        (0..RAYS)
-            .filter_map(|k| {
-                let dir = DVec2::from_angle(k as f64 * std::f64::consts::TAU / RAYS as f64);
+        self.beams
+            .iter()
+            .filter_map(|&dir| {
                 let d = unmapped.map_or(RANGE, |u| u.ray_cast(at, dir, RANGE));
                 let d = near.iter().filter_map(|m| m.ray(at, dir)).fold(d, f64::min);
                 // The site holds that obstacle too: nothing nearer means the cast gives d.

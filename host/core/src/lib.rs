@@ -15,11 +15,13 @@
 //!   them (and scans): a key and a MAC per source.
 //! - [`scenario`]: scenario and site files, their validation and limits, and what they
 //!   lower to (station, planner, formation, robots).
-//! - [`map`], [`geometry`]: obstacles behind an R-tree, distances, poses.
+//! - [`map`], [`geometry`]: obstacles behind an R-tree, distances, poses; [`cells`]:
+//!   things by grid cell, for what is near a point.
 //! - [`recording`]: the recording's vocabulary (topics, schemas, scene), shared by the
 //!   simulator and real runs.
 //! - [`transport`]: serial modem and UDP.
 
+pub mod cells;
 pub mod formation;
 pub mod geometry;
 pub mod localization;

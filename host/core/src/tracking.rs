@@ -42,6 +42,7 @@ use std::collections::VecDeque;
 use glam::DVec2;
 use serde::Serialize;
 
+use crate::cells::{cell_of, CellIndex};
 use crate::map::Map;
 
 /// Hits this close belong to one cluster, m.
@@ -475,7 +476,7 @@ pub const SURFACE_LINK_M: f64 = 1.0;
 #[derive(Debug, Clone, Default)]
 pub struct Surface {
     segments: Vec<(DVec2, DVec2)>,
-    cells: std::collections::HashMap<(i64, i64), Vec<usize>>,
+    cells: CellIndex,
 }
 
 impl Surface {
@@ -493,38 +494,25 @@ impl Surface {
                 segments.push((*h, next));
             }
         }
-        let mut cells: std::collections::HashMap<(i64, i64), Vec<usize>> = Default::default();
-        for (i, (a, b)) in segments.iter().enumerate() {
-            let (lo, hi) = (a.min(*b), a.max(*b));
-            let (c0, c1) = (surface_cell(lo), surface_cell(hi));
-            for cx in c0.0..=c1.0 {
-                for cy in c0.1..=c1.1 {
-                    cells.entry((cx, cy)).or_default().push(i);
-                }
-            }
-        }
+        let entries = segments.iter().enumerate().flat_map(|(i, (a, b))| {
+            let (c0, c1) = (surface_cell(a.min(*b)), surface_cell(a.max(*b)));
+            (c0.0..=c1.0).flat_map(move |cx| (c0.1..=c1.1).map(move |cy| ((cx, cy), i)))
+        });
+        let cells = CellIndex::new(SURFACE_LINK_M, entries);
         Self { segments, cells }
     }
 
     /// Whether `p` lies within `within` (≤ one cell) of a surface.
     pub fn near(&self, p: DVec2, within: f64) -> bool {
-        let (cx, cy) = surface_cell(p);
-        (-1..=1)
-            .flat_map(|dx| (-1..=1).map(move |dy| (cx + dx, cy + dy)))
-            .filter_map(|c| self.cells.get(&c))
-            .flatten()
-            .any(|i| {
-                let (a, b) = self.segments[*i];
-                crate::geometry::closest_on_segment(p, a, b).distance(p) <= within
-            })
+        self.cells.around(p).any(|i| {
+            let (a, b) = self.segments[i];
+            crate::geometry::closest_on_segment(p, a, b).distance(p) <= within
+        })
     }
 }
 
 fn surface_cell(p: DVec2) -> (i64, i64) {
-    (
-        (p.x / SURFACE_LINK_M).floor() as i64,
-        (p.y / SURFACE_LINK_M).floor() as i64,
-    )
+    cell_of(p, SURFACE_LINK_M)
 }
 
 /// One scan as kept for judging motion.
@@ -654,22 +642,12 @@ fn clusters(hits: &[DVec2]) -> Vec<Cluster> {
         }
         i
     }
-    let cell = |p: DVec2| ((p.x / LINK_M).floor() as i64, (p.y / LINK_M).floor() as i64);
-    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> =
-        std::collections::HashMap::new();
+    let grid = CellIndex::of_points(LINK_M, hits.iter().copied());
     for (i, h) in hits.iter().enumerate() {
-        grid.entry(cell(*h)).or_default().push(i);
-    }
-    for (i, h) in hits.iter().enumerate() {
-        let (cx, cy) = cell(*h);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for &j in grid.get(&(cx + dx, cy + dy)).into_iter().flatten() {
-                    if j > i && h.distance(hits[j]) <= LINK_M {
-                        let (a, b) = (root(&mut parent, i), root(&mut parent, j));
-                        parent[a.max(b)] = a.min(b);
-                    }
-                }
+        for j in grid.around(*h) {
+            if j > i && h.distance(hits[j]) <= LINK_M {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a.max(b)] = a.min(b);
             }
         }
     }
@@ -783,8 +761,7 @@ impl Tracker {
         let base = self
             .scans
             .iter()
-            .find(|s| now_ms.saturating_sub(s.at_ms) >= BASELINE_MS)
-            .cloned();
+            .position(|s| now_ms.saturating_sub(s.at_ms) >= BASELINE_MS);
         let mut clusters = self.split_merged(clusters(hits), hits, now_ms);
         for c in &mut clusters {
             c.fit(origin);
@@ -807,8 +784,8 @@ impl Tracker {
         for (t, c) in pairs {
             let cluster = clusters[c].take().expect("each cluster taken once");
             let had_moved = self.tracks[t].moved;
-            let changed =
-                self.tracks[t].take(cluster.clone(), &near, base.as_ref(), &surface, now_ms);
+            let base = base.map(|i| &self.scans[i]);
+            let changed = self.tracks[t].take(cluster.clone(), &near, base, &surface, now_ms);
             if let Some(motion) = changed {
                 let v = self.tracks[t].view(now_ms);
                 tracing::debug!(
