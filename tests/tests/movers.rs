@@ -318,12 +318,13 @@ fn oblivious_crowds_on_a_plaza() {
 /// Robots standing close in a dense crowd keep apart where their rings cannot see each
 /// other (`station/spacing.rs`): the worlds of the plaza suites' fresh seeds where a
 /// follower crossing to its slot clipped another standing square to its side, where
-/// the leader crept into a follower 65° off its heading, and where a follower sent aside
-/// for another backed its flank into it (1033).
+/// the leader crept into a follower 65° off its heading, where a follower sent aside
+/// for another backed its flank into it (1033), and where two followers tracking slots
+/// that swung with the leader converged flank to flank (1324).
 #[test]
 fn robots_keep_apart_in_dense_crowds() {
     let mut touched = Vec::new();
-    for (density, seed) in [(0.2, 331), (0.3, 305), (0.2, 304), (0.2, 1033)] {
+    for (density, seed) in [(0.2, 331), (0.3, 305), (0.2, 304), (0.2, 1033), (0.3, 1324)] {
         let g = gen::plaza_crowd(seed, density, true);
         let path = save(&g);
         let s = Scenario::parse(&g.toml, &g.name).unwrap_or_else(|e| panic!("{path}: {e}"));

@@ -131,6 +131,7 @@ impl BaseStation {
     ) {
         let p = leader.pose;
         let twist = (twist.0, self.broadcast_omega.step(twist.1));
+        self.told_twist = twist;
         if let Ok(pose) =
             WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32)
         {
@@ -255,7 +256,7 @@ impl BaseStation {
             offset: self.cfg.control_offset,
             brake: self.cfg.yield_brake,
             robot: self.cfg.robot,
-            leader: leader_snapshot(robots, self.cfg.leader, self.last_command),
+            leader: leader_snapshot(robots, self.cfg.leader, self.told_twist),
         };
         let mut told = self.spacing.step(now_ms, &fleet, slots, &self.world);
         if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {
@@ -298,7 +299,8 @@ impl BaseStation {
     }
 }
 
-/// The leader as its followers' law takes it: where it is, and the twist it was last told.
+/// The leader as its followers' law takes it: where it is, and the twist they were last
+/// told it drives.
 fn leader_snapshot(
     robots: &[spacing::Body],
     leader: u16,

@@ -162,6 +162,34 @@ fn top_speed(body: &Body, sign: f64, others: &[Body], footprint: f64, brake: f64
         .fold(f64::INFINITY, f64::min)
 }
 
+/// How long two robots' courses are held against each other beyond the time to stop, s.
+const COURSE_S: f64 = 0.2;
+
+/// Whether `body` and another robot, both moving and neither seeing the other with its
+/// ring, close on each other so that, keeping their velocities until `body` could stop
+/// (and [`COURSE_S`] more), they come within `KEEP_M` of touching, `body`'s own motion
+/// being part of the closing. Two followers tracking slots that swung with the leader
+/// converged flank to flank, each moving clear of where the other was, and touched
+/// (plaza-0.3-social-seed1324). A robot standing is judged by [`free`]; one the other
+/// sees is its ring's.
+fn converging(body: &Body, others: &[Body], footprint: f64, brake: f64) -> bool {
+    let unseen = |a: &Body, b: &Body| a.v.abs() > STANDING && !a.sees(a.v.signum(), b.position);
+    if body.v.abs() <= STANDING {
+        return false;
+    }
+    let reach = 2.0 * footprint + KEEP_M;
+    let horizon = LATENCY_S + body.v.abs() / brake + COURSE_S;
+    let own = body.velocity();
+    others
+        .iter()
+        .filter(|o| o.id != body.id && unseen(body, o) && unseen(o, body))
+        .any(|o| {
+            let (r, w) = (o.position - body.position, o.velocity() - own);
+            let t = (-r.dot(w) / w.length_squared().max(1e-12)).clamp(0.0, horizon);
+            r.dot(w) < 0.0 && own.dot(r) > 0.0 && (r + w * t).length() < reach
+        })
+}
+
 /// The leader's commanded speed `v`, capped so that it stops short of every other robot.
 pub fn cap_leader(leader: &Body, v: f64, others: &[Body], footprint: f64, brake: f64) -> f64 {
     let ahead = top_speed(leader, 1.0, others, footprint, brake);
@@ -257,12 +285,13 @@ impl Spacing {
                 (None, None) => 1.0,
             };
             let way = to_slot.map_or(*f, |heading| Body { heading, ..*f });
-            let hold = if was.is_some() || to_slot.is_some() {
-                free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M
-                    || to_slot.is_some() && !sets_off_clear(f, slots, fleet)
-            } else {
-                f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake)
-            };
+            let hold = converging(f, fleet.robots, fleet.footprint, fleet.brake)
+                || if was.is_some() || to_slot.is_some() {
+                    free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M
+                        || to_slot.is_some() && !sets_off_clear(f, slots, fleet)
+                } else {
+                    f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake)
+                };
             let stop_at = was.map_or_else(|| hold_point(f, fleet), |h| h.point);
             // Held moving, it is judged on its heading; standing, it turns to its slot.
             let turning = was.and_then(|h| h.turn);
@@ -844,6 +873,32 @@ mod tests {
         assert!(s
             .hold_off_slots(&fleet(&bodies[1..]), &leader, &beside)
             .is_empty());
+    }
+
+    #[test]
+    fn followers_converging_flank_to_flank_are_held() {
+        // plaza-0.3-social-seed1324 at 203.5 s: follower 1 backs (heading 110°) and
+        // follower 2 drives on (heading −95°), each tracking a slot that swings with the
+        // leader. Each moves clear of where the other is (69° and 68° off their ways,
+        // beyond both rings' beams), but they close on each other, and touched 1 s later.
+        // Follower 2, the faster, would come within touching distance before it could
+        // stop: it is held.
+        let one = body(1, 24.594, 5.128, 110.0, -0.2);
+        let two = body(2, 25.29, 5.33, -94.5, 0.285);
+        assert!(free(&one, -1.0, &[two], FP).is_infinite());
+        assert!(free(&two, 1.0, &[one], FP).is_infinite());
+        let mut s = Spacing::default();
+        let told = s.step(0, &fleet(&[one, two]), &[], &open());
+        let held: Vec<u16> = told.iter().map(|t| t.id).collect();
+        assert_eq!(held, vec![2], "{told:?}");
+        // Follower 2 alone, driving away from a follower that stands: not held.
+        let still = Body { v: 0.0, ..one };
+        let away = Body {
+            heading: 85f64.to_radians(),
+            ..two
+        };
+        let mut s = Spacing::default();
+        assert!(s.step(0, &fleet(&[still, away]), &[], &open()).is_empty());
     }
 
     #[test]
