@@ -275,7 +275,7 @@ fn a_person_standing_20s_in_the_way() {
 /// of 64 (docs/results.md#movers).
 #[test]
 #[ignore = "issue 29's bound is not met yet: mean intrusion at 0.2 persons/m² is \
-            1.2-1.9 s on every seed set (bound 1 s), and seeds 333-396 reach the goal \
+            1.04-1.9 s on every seed set (bound 1 s), and seeds 333-396 reach the goal \
             in 63 of 64 (bound 99 %)"]
 fn social_crowds_on_a_plaza() {
     let mut failed = Vec::new();
