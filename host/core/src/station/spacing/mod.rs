@@ -8,15 +8,20 @@
 //!
 //! The robots are discs of one footprint, and a robot's centre moves along its heading:
 //! a robot turning on the spot never comes closer to another.
+//!
+//! Where a follower is sent aside or let go, how its body will swing getting there is
+//! rolled out with the firmware's own control code ([`swing`]).
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use control_core::controller::{self, DETOUR_GAIN, DETOUR_SPEED};
-use control_core::follower::{self, LeaderSnapshot, SlotRef};
-use control_core::{math, Pose, RobotConfig, Twist};
+use control_core::follower::LeaderSnapshot;
+use control_core::RobotConfig;
 use glam::DVec2;
 
 use crate::map::Map;
+
+mod swing;
+use swing::{sets_off_clear, steps_clear};
 
 /// The ring's outer beams, degrees off the way the robot drives (`hil-sim`'s ring): a
 /// robot whose centre is within them is the ring's to keep from.
@@ -43,15 +48,6 @@ const FACING_DEG: f64 = 20.0;
 /// A follower turns to face a slot at least this far from its control point, m (a nearer
 /// one is where it stands: the way there swings round as it turns).
 const TURN_FROM_M: f64 = 0.5;
-/// A step aside is rolled out this long, in steps of a control period, s.
-const STEP_ROLLOUT_S: f32 = 3.0;
-const STEP_DT: f32 = 0.1;
-/// A standing follower's setting off is rolled out this long, s, against the robots
-/// within this beyond touching distance, m.
-const SET_OFF_ROLLOUT_S: f32 = 1.0;
-const SET_OFF_NEAR_M: f64 = 0.2;
-/// What a step aside may close on a robot within touching distance, rounding aside, m.
-const STEP_SLACK_M: f64 = 0.01;
 
 /// One robot as the station estimates it now.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -493,92 +489,10 @@ fn room_for(held: &Body, sign: f64, fleet: &Fleet, map: &Map) -> Option<(u16, DV
         .then_some((other.id, point))
 }
 
-/// Whether `stepper`, standing, keeps from every other robot all the way while its control
-/// point makes for `point` as its firmware drives a detour: none comes within [`KEEP_M`]
-/// beyond both footprints, nor, where it is that near already, nearer than now. A
-/// differential drive brings its control point aside by swinging its body round: a
-/// follower stepping aside backed its flank into the one held for it, where neither ring
-/// looks (plaza-0.2-social-seed1033).
-fn steps_clear(stepper: &Body, point: DVec2, fleet: &Fleet) -> bool {
-    let target = (point.x as f32, point.y as f32);
-    let d = fleet.offset as f32;
-    let law =
-        |_: f32, pose: &Pose| Some(follower::toward(target, pose, d, DETOUR_GAIN, DETOUR_SPEED));
-    swings_clear(stepper, fleet, STEP_ROLLOUT_S, |_| true, law)
-}
-
-/// Whether a standing follower setting off for its slot swings clear of the robots beside
-/// it over its first [`SET_OFF_ROLLOUT_S`], driving its own L-φ law toward the slot as
-/// it stands from the leader now, the leader driving on as it was last told. Its way
-/// judged as a straight line to the slot, a follower let go backed and swung its flank
-/// into one standing beside it (plaza-0.2-social-seed1053).
-fn sets_off_clear(f: &Body, slots: &[(u16, DVec2)], fleet: &Fleet) -> bool {
-    let (Some(leader), Some(slot)) = (fleet.leader, slot_of(slots, f.id)) else {
-        return true;
-    };
-    let (l, phi) = follower::as_slot(&leader.pose, (slot.x as f32, slot.y as f32));
-    let slot = SlotRef {
-        l,
-        phi,
-        ..SlotRef::default()
-    };
-    let gains = fleet.robot.gains;
-    let law =
-        |t: f32, pose: &Pose| follower::lphi_law(&leader.predict(t), pose, &slot, &gains).ok();
-    let near = 2.0 * fleet.footprint + KEEP_M + SET_OFF_NEAR_M;
-    // What its ring sees ahead or behind is the ring's to keep from.
-    let watched = |r: &Body| {
-        !f.sees(1.0, r.position)
-            && !f.sees(-1.0, r.position)
-            && r.position.distance(f.position) <= near
-    };
-    swings_clear(f, fleet, SET_OFF_ROLLOUT_S, watched, law)
-}
-
-/// Whether `stepper`, standing, driving `law` (the twist it asks, at a time from now and a
-/// pose) through its firmware's limits for `horizon_s`, keeps from every other robot that
-/// it `watches`: none comes within [`KEEP_M`] beyond both footprints, nor, where it is
-/// that near already, nearer than now.
-fn swings_clear(
-    stepper: &Body,
-    fleet: &Fleet,
-    horizon_s: f32,
-    watches: impl Fn(&Body) -> bool,
-    law: impl Fn(f32, &Pose) -> Option<Twist>,
-) -> bool {
-    let reach = 2.0 * fleet.footprint + KEEP_M;
-    let least: Vec<(DVec2, f64)> = fleet
-        .robots
-        .iter()
-        .filter(|r| r.id != stepper.id && watches(r))
-        .map(|r| (r.position, r.position.distance(stepper.position).min(reach)))
-        .collect();
-    let (x, y) = (stepper.position.x as f32, stepper.position.y as f32);
-    let mut pose = Pose::new(x, y, stepper.heading as f32);
-    let mut twist = Twist::ZERO;
-    for k in 0..(horizon_s / STEP_DT) as usize {
-        let Some(asked) = law(k as f32 * STEP_DT, &pose) else {
-            return true;
-        };
-        twist = controller::limit(&fleet.robot.limits, twist, asked, STEP_DT);
-        let (s, c) = math::sin_cos(pose.heading + 0.5 * twist.omega * STEP_DT);
-        pose.x += twist.v * STEP_DT * c;
-        pose.y += twist.v * STEP_DT * s;
-        pose.heading = math::wrap_angle(pose.heading + twist.omega * STEP_DT);
-        let centre = DVec2::new(pose.x as f64, pose.y as f64);
-        if least
-            .iter()
-            .any(|(p, least)| centre.distance(*p) < least - STEP_SLACK_M)
-        {
-            return false;
-        }
-    }
-    true
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use control_core::Pose;
 
     const FP: f64 = 0.3;
 
