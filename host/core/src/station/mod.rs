@@ -190,8 +190,6 @@ pub struct BaseStation {
     last_command: (f64, f64),
     /// The turn rate the followers are told, calmed where it only jitters.
     broadcast_omega: TurnRateSmoother,
-    /// The leader's twist as the followers were last told it (the smoothed turn rate).
-    told_twist: (f64, f64),
     /// Followers being sent round what holds them.
     detours: Detours,
     /// Followers held short of another robot.
@@ -244,7 +242,6 @@ impl BaseStation {
             fix_watch: None,
             operator: OperatorHold::default(),
             broadcast_omega: TurnRateSmoother::default(),
-            told_twist: (0.0, 0.0),
             last_command: (0.0, 0.0),
             detours: Detours::default(),
             spacing: Spacing::default(),

@@ -131,7 +131,6 @@ impl BaseStation {
     ) {
         let p = leader.pose;
         let twist = (twist.0, self.broadcast_omega.step(twist.1));
-        self.told_twist = twist;
         if let Ok(pose) =
             WirePose::from_si(p.position.x as f32, p.position.y as f32, p.heading as f32)
         {
@@ -256,7 +255,7 @@ impl BaseStation {
             offset: self.cfg.control_offset,
             brake: self.cfg.yield_brake,
             robot: self.cfg.robot,
-            leader: leader_snapshot(robots, self.cfg.leader, self.told_twist),
+            leader: leader_snapshot(robots, self.cfg.leader, self.told_twist()),
         };
         let mut told = self.spacing.step(now_ms, &fleet, slots, &self.world);
         if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {
@@ -296,6 +295,12 @@ impl BaseStation {
             now_ms,
             &Message::Detour(Detour { x_mm, y_mm }),
         );
+    }
+
+    /// The leader's twist as the followers were last told it: the speed it was commanded
+    /// (every command is broadcast as it is sent) and the smoothed turn rate.
+    fn told_twist(&self) -> (f64, f64) {
+        (self.last_command.0, self.broadcast_omega.omega())
     }
 }
 

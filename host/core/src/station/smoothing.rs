@@ -36,6 +36,11 @@ impl TurnRateSmoother {
         self.omega += taken * change;
         self.omega
     }
+
+    /// The smoothed turn rate it last gave.
+    pub fn omega(&self) -> f64 {
+        self.omega
+    }
 }
 
 impl Default for TurnRateSmoother {
