@@ -188,6 +188,9 @@ pub struct MoverMeasures {
     pub min_person_clearance_m: f64,
     /// Time a moving robot was within 0.5 m of a person's footprint, s.
     pub intrusion_s: f64,
+    /// The same, robot by robot (in the run's order); they overlap where two robots
+    /// intrude at once, s.
+    pub intrusion_by_robot_s: Vec<f64>,
     /// Time the leader stood with a person within 1.5 m of its footprint, s.
     pub freezing_s: f64,
     /// The first [`MAX_CONTACTS_LISTED`] contacts, in order.
@@ -230,14 +233,16 @@ impl MoverMeasures {
         dt: f64,
     ) {
         let (mut intruding, mut freezing) = (false, false);
+        self.intrusion_by_robot_s.resize(robots.len(), 0.0);
         for (i, (p, fp, v, leads)) in robots.iter().enumerate() {
             let moving = v.abs() > STANDING;
+            let mut intrudes = false;
             for m in movers {
                 let gap = m.distance(*p) - fp;
                 let person = m.kind != MoverKind::Vehicle;
                 if person {
                     self.min_person_clearance_m = self.min_person_clearance_m.min(gap);
-                    intruding |= moving && gap < INTRUSION_WITHIN;
+                    intrudes |= moving && gap < INTRUSION_WITHIN;
                     freezing |= *leads && !moving && gap < FREEZING_WITHIN;
                 }
                 let pair = (i, m.index);
@@ -263,6 +268,10 @@ impl MoverMeasures {
                     }
                 }
             }
+            if intrudes {
+                self.intrusion_by_robot_s[i] += dt;
+            }
+            intruding |= intrudes;
         }
         self.intrusion_s += if intruding { dt } else { 0.0 };
         self.freezing_s += if freezing { dt } else { 0.0 };
@@ -442,6 +451,50 @@ impl Recorder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use base_station::scenario::movers::MoverShape;
+
+    fn person(index: usize, x: f64, y: f64) -> MoverState {
+        MoverState {
+            index,
+            kind: MoverKind::Pedestrian,
+            position: DVec2::new(x, y),
+            velocity: DVec2::new(1.0, 0.0),
+            heading: 0.0,
+            shape: MoverShape::Circle { radius: 0.25 },
+        }
+    }
+
+    /// Intrusion is counted once for the fleet and robot by robot; a standing robot
+    /// does not intrude.
+    #[test]
+    fn intrusion_is_counted_for_the_fleet_and_robot_by_robot() {
+        let mut m = MoverMeasures::new();
+        let fp = 0.3;
+        // Robot 0 moves with a person 0.3 m off its footprint; robot 1 moves far from
+        // anyone; robot 2 stands with a person 0.1 m off.
+        let robots = [
+            (DVec2::new(0.0, 0.0), fp, 0.3, true),
+            (DVec2::new(10.0, 0.0), fp, 0.3, false),
+            (DVec2::new(0.0, 5.0), fp, 0.0, false),
+        ];
+        let movers = [person(0, 0.85, 0.0), person(1, 0.0, 5.65)];
+        for k in 0..10 {
+            m.observe(k as f64 * 0.1, &robots, &movers, 0.1);
+        }
+        assert!((m.intrusion_s - 1.0).abs() < 1e-9);
+        assert_eq!(m.intrusion_by_robot_s.len(), 3);
+        assert!((m.intrusion_by_robot_s[0] - 1.0).abs() < 1e-9);
+        assert_eq!(m.intrusion_by_robot_s[1], 0.0);
+        assert_eq!(m.intrusion_by_robot_s[2], 0.0);
+        // Now robot 2 moves as well: the fleet's time counts once, each robot's its own.
+        let both = [robots[0], robots[1], (robots[2].0, fp, 0.2, false)];
+        for k in 0..5 {
+            m.observe(1.0 + k as f64 * 0.1, &both, &movers, 0.1);
+        }
+        assert!((m.intrusion_s - 1.5).abs() < 1e-9);
+        assert!((m.intrusion_by_robot_s[0] - 1.5).abs() < 1e-9);
+        assert!((m.intrusion_by_robot_s[2] - 0.5).abs() < 1e-9);
+    }
 
     /// Past the path's start the reference goes on along the chord from the leader to
     /// the start, not back along the heading the leader has now.

@@ -128,6 +128,8 @@ pub struct MoversReport {
     pub min_person_clearance_m: Option<f64>,
     /// Time a moving robot was within 0.5 m of a person's footprint, s.
     pub intrusion_s: f64,
+    /// The same, robot by robot (the run's order, as in `contacts[].robot`), s.
+    pub intrusion_by_robot_s: Vec<f64>,
     /// Time the leader stood with a person within 1.5 m of its footprint, s.
     pub freezing_s: f64,
     /// The same scenario and seed with nobody on the site: its time to goal (null: not
@@ -222,6 +224,7 @@ impl MoversReport {
                 .is_finite()
                 .then_some(m.min_person_clearance_m),
             intrusion_s: m.intrusion_s,
+            intrusion_by_robot_s: m.intrusion_by_robot_s.clone(),
             freezing_s: m.freezing_s,
             time_to_goal_empty_s: None,
             contacts: m.contacts.clone(),

@@ -102,6 +102,8 @@ struct Rates {
     walked_into: f64,
     timeout: f64,
     intrusion_s: f64,
+    /// The leader's share of the robots' intrusion time, robot by robot (NaN: none).
+    leader_share: f64,
     freezing_s: f64,
     /// Mean time to goal over the empty site's, where both reached it.
     ratio: Option<f64>,
@@ -120,9 +122,23 @@ fn rates(outcomes: &[Outcome]) -> Rates {
         walked_into: share(&|o| o.report.movers.contacts_standing > 0),
         timeout: share(&|o| !o.report.goal_reached),
         intrusion_s: mean(&|o| o.report.movers.intrusion_s),
+        leader_share: leader_share(outcomes),
         freezing_s: mean(&|o| o.report.movers.freezing_s),
         ratio: (!ratios.is_empty()).then(|| ratios.iter().sum::<f64>() / ratios.len() as f64),
     }
+}
+
+/// The leader's share of every robot's intrusion time over the suite.
+fn leader_share(outcomes: &[Outcome]) -> f64 {
+    let (mut leader, mut all) = (0.0, 0.0);
+    for o in outcomes {
+        let by_robot = &o.report.movers.intrusion_by_robot_s;
+        for (robot, s) in o.report.robots.iter().zip(by_robot) {
+            leader += if robot.role == "leader" { *s } else { 0.0 };
+            all += s;
+        }
+    }
+    leader / all
 }
 
 /// Runs a suite; prints the lines and the rates, and returns the outcomes for the
@@ -139,7 +155,7 @@ fn suite(name: &str, make: impl Fn(u64) -> Generated) -> (Rates, Vec<Outcome>) {
     bar.finish_and_clear();
     let r = rates(&outcomes);
     println!(
-        "suite {name}: {} worlds, success {:.0} %, contact {:.0} %, walked into {:.0} %, timeout {:.0} %, mean intrusion {:.2} s, mean freezing {:.1} s, time {} × empty",
+        "suite {name}: {} worlds, success {:.0} %, contact {:.0} %, walked into {:.0} %, timeout {:.0} %, mean intrusion {:.2} s, mean freezing {:.1} s, time {} × empty, leader's share of intrusion {}",
         r.n,
         100.0 * r.success,
         100.0 * r.contact,
@@ -147,7 +163,12 @@ fn suite(name: &str, make: impl Fn(u64) -> Generated) -> (Rates, Vec<Outcome>) {
         100.0 * r.timeout,
         r.intrusion_s,
         r.freezing_s,
-        r.ratio.map_or("—".to_string(), |x| format!("{x:.2}"))
+        r.ratio.map_or("—".to_string(), |x| format!("{x:.2}")),
+        if r.leader_share.is_nan() {
+            "—".to_string()
+        } else {
+            format!("{:.0} %", 100.0 * r.leader_share)
+        }
     );
     (r, outcomes)
 }
