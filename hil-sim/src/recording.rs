@@ -1,12 +1,13 @@
 //! A run recorded as MCAP with the Foxglove SDK, to open in Foxglove or Lichtblick: the site
 //! map and the robots as a 3D scene (obstacles, footprints, headings, followers' slot
-//! points), the movers (`/movers`, the truth) and what the station tracks (`/tracks`), each robot's pose, speeds and tracking error (plottable), the base station's
-//! events as log messages, and the raw radio bytes every node sent (`/radio`, JSON, which
-//! `basestation decode` reads). Timestamps are the simulated clock (nanoseconds from
-//! the run's start). Written while the run goes on ([`Recording`]: `sim` hands it what is
-//! new every few simulated seconds; encoding and compression run on a thread of its own) or
-//! after it ([`write_mcap`]), through a context of its own, so runs recorded side by side
-//! (tests) never mix.
+//! points), the movers (`/movers`, the truth), what the station tracks (`/tracks`) and the
+//! marks it keeps of what its scans found unmapped (`/sensed`), each robot's pose, speeds
+//! and tracking error (plottable), the base station's events as log messages, and the raw
+//! radio bytes every node sent (`/radio`, JSON, which `basestation decode` reads).
+//! Timestamps are the simulated clock (nanoseconds from the run's start). Written while
+//! the run goes on ([`Recording`]: `sim` hands it what is new every few simulated seconds;
+//! encoding and compression run on a thread of its own) or after it ([`write_mcap`]),
+//! through a context of its own, so runs recorded side by side (tests) never mix.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -18,6 +19,7 @@ use foxglove::messages::{
 };
 use foxglove::{Channel, Context, McapWriteOptions, McapWriter, RawChannel};
 
+use base_station::geometry::Obstacle;
 use glam::DVec2;
 
 use crate::metrics::Sample;
@@ -89,6 +91,7 @@ struct Batch {
     radio: Transmissions,
     routes: Vec<(u64, Vec<DVec2>)>,
     links: Vec<(u64, Vec<(u16, LinkHealth)>)>,
+    sensed: Vec<(u64, Vec<Obstacle>)>,
     events: Vec<(String, Option<u16>, f64)>,
 }
 
@@ -114,7 +117,29 @@ pub struct Recording {
     /// The file, as messages name it.
     shown: String,
     /// How much of each of the world's records was handed over.
-    fed: (usize, usize, usize, usize),
+    fed: Fed,
+}
+
+/// How many of each of the world's records were handed over.
+#[derive(Debug, Clone, Copy, Default)]
+struct Fed {
+    samples: usize,
+    radio: usize,
+    routes: usize,
+    links: usize,
+    sensed: usize,
+}
+
+impl Fed {
+    fn all(world: &World) -> Self {
+        Self {
+            samples: world.recorder.samples.len(),
+            radio: world.transmitted.len(),
+            routes: world.routes.len(),
+            links: world.links.len(),
+            sensed: world.sensed.len(),
+        }
+    }
 }
 
 impl Recording {
@@ -177,22 +202,23 @@ impl Recording {
             batches: Some(batches),
             writer: Some(thread),
             shown,
-            fed: (0, 0, 0, 0),
+            fed: Fed::default(),
         })
     }
 
     /// What the world recorded since the last handover.
     fn batch(&mut self, world: &World) -> Batch {
-        let (samples, radio, routes, links) = self.fed;
-        let new = &world.transmitted[radio..];
+        let fed = self.fed;
+        let new = &world.transmitted[fed.radio..];
         let mut batch = Batch {
-            samples: world.recorder.samples[samples..].to_vec(),
+            samples: world.recorder.samples[fed.samples..].to_vec(),
             radio: Transmissions {
                 sent: Vec::with_capacity(new.len()),
                 bytes: Vec::with_capacity(new.iter().map(|(.., b)| b.len()).sum()),
             },
-            routes: world.routes[routes..].to_vec(),
-            links: world.links[links..].to_vec(),
+            routes: world.routes[fed.routes..].to_vec(),
+            links: world.links[fed.links..].to_vec(),
+            sensed: world.sensed[fed.sensed..].to_vec(),
             events: Vec::new(),
         };
         for (t_us, from, bytes) in new {
@@ -202,12 +228,7 @@ impl Recording {
                 .sent
                 .push((*t_us, *from, batch.radio.bytes.len()));
         }
-        self.fed = (
-            world.recorder.samples.len(),
-            world.transmitted.len(),
-            world.routes.len(),
-            world.links.len(),
-        );
+        self.fed = Fed::all(world);
         batch
     }
 
@@ -277,6 +298,7 @@ struct Writer {
     shape: &'static str,
     movers: Channel<SceneUpdate>,
     tracks: Channel<SceneUpdate>,
+    sensed: Channel<SceneUpdate>,
     events: Channel<Log>,
     radio: Arc<RawChannel>,
     senders: Vec<String>,
@@ -338,6 +360,7 @@ impl Writer {
             routes: ctx.channel_builder("/route").build::<SceneUpdate>(),
             movers: ctx.channel_builder(MOVERS_TOPIC).build::<SceneUpdate>(),
             tracks: ctx.channel_builder(TRACKS_TOPIC).build::<SceneUpdate>(),
+            sensed: ctx.channel_builder(SENSED_TOPIC).build::<SceneUpdate>(),
             links,
             shapes: ctx.channel_builder("/formation").build::<FormationShape>(),
             shape: "",
@@ -363,6 +386,15 @@ impl Writer {
             start = end;
         }
         batch.routes.iter().for_each(|(t, r)| self.route(*t, r));
+        for (t_us, marks) in &batch.sensed {
+            let t = t_us * 1000;
+            let update = SceneUpdate {
+                entities: vec![sensed_entity(t, marks)],
+                ..Default::default()
+            };
+            self.sensed.log_with_time(&update, t);
+            self.count(SENSED_TOPIC);
+        }
         for (t_us, health) in batch.links {
             for (id, h) in health {
                 if let Some(ch) = self.links.get(&id) {

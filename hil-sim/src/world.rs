@@ -5,6 +5,7 @@
 use std::collections::{HashMap, VecDeque};
 use std::time::{Duration, Instant};
 
+use base_station::geometry::Obstacle;
 use base_station::map::Map;
 use base_station::scenario::{Role, Scenario};
 use base_station::station::{nonce_base, BaseStation, StationConfig};
@@ -230,6 +231,9 @@ pub struct World {
     pub routes: Vec<(u64, Vec<DVec2>)>,
     /// Each robot's link health as the station saw it, once a second (µs): for the recording.
     pub links: Vec<(u64, Vec<(u16, base_station::recording::LinkHealth)>)>,
+    /// The station's sensed marks, once a second where they changed (µs): for the
+    /// recording.
+    pub sensed: Vec<(u64, Vec<Obstacle>)>,
 }
 
 const PERIOD_US: u64 = 100_000;
@@ -297,6 +301,7 @@ impl World {
             }),
             routes: Vec::new(),
             links: Vec::new(),
+            sensed: Vec::new(),
             movers,
             mover_states,
             map,
@@ -639,6 +644,19 @@ impl World {
                 t,
                 base_station::recording::link_health(&self.station, base_ms),
             ));
+            self.note_sensed(t);
+        }
+    }
+
+    /// The station's sensed marks at `t`, if they changed since the last ones noted.
+    fn note_sensed(&mut self, t: u64) {
+        let marks = self.station.perception().in_order();
+        if self
+            .sensed
+            .last()
+            .map_or(!marks.is_empty(), |(_, m)| *m != marks)
+        {
+            self.sensed.push((t, marks));
         }
     }
 

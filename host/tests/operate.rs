@@ -62,7 +62,7 @@ fn paper_passage_over(transport: &str) {
         .iter()
         .map(|(t, (_, data, _))| (t.clone(), data.clone()))
         .collect();
-    common::assert_layout_fits(&schemas, &["/movers", "/tracks"]);
+    common::assert_layout_fits(&schemas, &["/movers", "/tracks", "/sensed"]);
 
     let r = json(&report);
     assert_eq!(r["goal_reached"], true, "{r}");
@@ -124,6 +124,7 @@ fn run_routes_round_an_unmapped_van_from_the_scan_feed() {
     );
     let at = robots.address();
     let run_report = site.path("run.json");
+    let recording = site.path("run.mcap");
     run_over_udp(
         &site,
         scenario,
@@ -133,6 +134,8 @@ fn run_routes_round_an_unmapped_van_from_the_scan_feed() {
             &feed,
             "--report",
             run_report.to_str().unwrap(),
+            "--mcap",
+            recording.to_str().unwrap(),
         ],
     )
     .finish(Duration::from_secs(110));
@@ -160,6 +163,11 @@ fn run_routes_round_an_unmapped_van_from_the_scan_feed() {
         .filter(|e| e["event"] == "replanned")
         .count();
     assert!(replans > 0, "never planned round the van");
+    // The operator sees what the route keeps out of: the van's marks.
+    let channels = common::channels(&recording);
+    let (schema, _, sensed) = &channels["/sensed"];
+    assert_eq!(schema, "foxglove.SceneUpdate");
+    assert!(*sensed >= 1, "{sensed}");
 }
 
 /// The station is killed mid-way (no goodbye): robots stop on their own within the stop

@@ -166,7 +166,7 @@ fn basestation_sim_writes_report_and_figure() {
     assert!(lines.iter().all(|l| l["t_s"].as_f64().is_some()));
 
     // A run without movers records none.
-    common::assert_layout_fits(&schemas, &["/movers", "/tracks"]);
+    common::assert_layout_fits(&schemas, &["/movers", "/tracks", "/sensed"]);
 }
 
 #[test]
@@ -254,6 +254,10 @@ fn street_crossing_reports_and_records_the_movers() {
     let (schema, tracks) = &count["/tracks"];
     assert_eq!(schema, "foxglove.SceneUpdate");
     assert!(*tracks > samples / 2, "{tracks} of {samples}");
+    // The person who stops in the street is marked, with the room they are owed.
+    let (schema, sensed) = &count["/sensed"];
+    assert_eq!(schema, "foxglove.SceneUpdate");
+    assert!(*sensed >= 1, "{sensed}");
     // The shipped layout shows them.
     common::assert_layout_fits(&schemas, &[]);
     // `--layout`: every topic its plots name is a channel of this recording.

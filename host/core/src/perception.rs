@@ -294,6 +294,14 @@ impl Perception {
         self.marks.values().map(|m| &m.obstacle)
     }
 
+    /// Everything sensed and not forgotten, by cell (row by row): the same marks in the
+    /// same order in every process, for a recording (the marks are kept hashed).
+    pub fn in_order(&self) -> Vec<Obstacle> {
+        let mut cells: Vec<(&Cell, &Mark)> = self.marks.iter().collect();
+        cells.sort_unstable_by_key(|(c, _)| (c.1, c.0));
+        cells.into_iter().map(|(_, m)| m.obstacle.clone()).collect()
+    }
+
     pub fn len(&self) -> usize {
         self.marks.len()
     }
@@ -457,6 +465,27 @@ mod tests {
         assert_eq!(p.len(), 1, "the person stays marked");
         assert_eq!(p.release(&[7]).removed.len(), 1);
         assert_eq!(p.len(), 0);
+    }
+
+    /// The marks in order are the same whatever order they were seen in (the store is
+    /// hashed, and hashers differ from process to process).
+    #[test]
+    fn marks_in_order_do_not_depend_on_the_order_seen() {
+        let known = Map::new(Vec::new());
+        let hits: Vec<DVec2> = (0..30)
+            .map(|k| DVec2::new(-3.0 + 0.2 * (k % 10) as f64, 1.0 + 0.4 * (k / 10) as f64))
+            .collect();
+        let mut reversed = hits.clone();
+        reversed.reverse();
+        let mut a = Perception::new(LIMITS);
+        let mut b = Perception::new(LIMITS);
+        a.absorb(&hits, Some(DVec2::ZERO), &known, 0, 0);
+        b.absorb(&reversed, Some(DVec2::ZERO), &known, 0, 0);
+        let order = a.in_order();
+        assert_eq!(order.len(), 30);
+        assert_eq!(order, b.in_order());
+        let first = order[0].bounds()[0];
+        assert!(first.y < 1.0 && first.x < -2.9, "{first}");
     }
 
     /// Issue 27, finding 3: a wall of hits (here a real one seen once) is forgotten when

@@ -168,39 +168,62 @@ pub fn color(r: f64, g: f64, b: f64) -> Option<Color> {
     Some(Color { r, g, b, a: 1.0 })
 }
 
-/// The site's obstacles: circles as 1 m cylinders, segments and polygons as lines.
+/// The site's obstacles: circles as 1 m cylinders, segments and polygons as lines; grey.
 pub fn map_entity(obstacles: &[Obstacle]) -> SceneEntity {
-    let grey = color(0.45, 0.45, 0.5);
+    obstacles_entity("map", color(0.45, 0.45, 0.5), 1.0, obstacles)
+}
+
+/// The station's sensed marks (`/sensed`): what its scans hold that the site map does not
+/// (a van, a bin, a person who stopped, with the room they are owed, and the lane they
+/// will walk on), which the route keeps out of; 0.3 m amber discs.
+pub const SENSED_TOPIC: &str = "/sensed";
+
+/// The marks in the scene at `t_ns`, as [`SENSED_TOPIC`] shows them.
+pub fn sensed_entity(t_ns: u64, marks: &[Obstacle]) -> SceneEntity {
+    SceneEntity {
+        timestamp: stamp(t_ns),
+        ..obstacles_entity("sensed", color(0.95, 0.65, 0.1), 0.3, marks)
+    }
+}
+
+/// `obstacles` as scene entity `id`: circles as cylinders `height` tall, segments and
+/// polygons as lines.
+fn obstacles_entity(
+    id: &str,
+    hue: Option<Color>,
+    height: f64,
+    obstacles: &[Obstacle],
+) -> SceneEntity {
     let mut e = SceneEntity {
         frame_id: FRAME.into(),
-        id: "map".into(),
+        id: id.into(),
         ..Default::default()
     };
     for o in obstacles {
         match o {
             Obstacle::Circle { center, radius } => e.cylinders.push(CylinderPrimitive {
-                pose: pose(center.x, center.y, 0.5, 0.0),
+                pose: pose(center.x, center.y, 0.5 * height, 0.0),
                 size: Some(Vector3 {
                     x: 2.0 * radius,
                     y: 2.0 * radius,
-                    z: 1.0,
+                    z: height,
                 }),
                 bottom_scale: 1.0,
                 top_scale: 1.0,
-                color: grey,
+                color: hue,
             }),
             Obstacle::Segment { a, b } => e.lines.push(LinePrimitive {
                 r#type: line_primitive::Type::LineStrip as i32,
                 thickness: 0.1,
                 points: vec![point(a.x, a.y), point(b.x, b.y)],
-                color: grey,
+                color: hue,
                 ..Default::default()
             }),
             Obstacle::Polygon { points } => e.lines.push(LinePrimitive {
                 r#type: line_primitive::Type::LineLoop as i32,
                 thickness: 0.1,
                 points: points.iter().map(|p| point(p.x, p.y)).collect(),
-                color: grey,
+                color: hue,
                 ..Default::default()
             }),
         }

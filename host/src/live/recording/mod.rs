@@ -3,10 +3,10 @@
 //! simulation's recording where the station knows them): the radio bytes both ways, the
 //! base station's events, each robot's pose as its telemetry reports it and its link's
 //! health once a second, and the scene a simulation's recording has (`/map`, `/route`,
-//! `/tf`, `/robots` with the slots, `/robot_N/state`, `/formation`, `/tracks`), so one
-//! Foxglove layout serves both; a metadata record opens the file. `sim --realtime
-//! --live` serves the same. Timestamps: the caller's clock (the wall clock in `run`, the
-//! simulated one in `sim`).
+//! `/tf`, `/robots` with the slots, `/robot_N/state`, `/formation`, `/tracks`,
+//! `/sensed`), so one Foxglove layout serves both; a metadata record opens the file. `sim
+//! --realtime --live` serves the same. Timestamps: the caller's clock (the wall clock in
+//! `run`, the simulated one in `sim`).
 
 mod gate;
 pub mod layout;
@@ -19,10 +19,11 @@ use std::sync::Arc;
 use std::time::SystemTime;
 
 use anyhow::Context as _;
+use base_station::geometry::Obstacle;
 use base_station::recording::{
     events_channel, link_health, log_event, log_radio, map_entity, pose, radio_channel,
-    robot_entity, route_entity, slot_marker, stamp, tracks_entity, turned, FormationShape,
-    LinkHealth, RobotState, FRAME, TF_TOPIC, TRACKS_TOPIC,
+    robot_entity, route_entity, sensed_entity, slot_marker, stamp, tracks_entity, turned,
+    FormationShape, LinkHealth, RobotState, FRAME, SENSED_TOPIC, TF_TOPIC, TRACKS_TOPIC,
 };
 use base_station::scenario::Scenario;
 use base_station::station::BaseStation;
@@ -57,6 +58,9 @@ struct Scene {
     routes: Channel<SceneUpdate>,
     shapes: Channel<FormationShape>,
     tracks: Channel<SceneUpdate>,
+    sensed: Channel<SceneUpdate>,
+    /// The sensed marks last logged.
+    marks: Vec<Obstacle>,
     leader: u16,
     footprint: f64,
     track_width: f64,
@@ -156,6 +160,8 @@ impl LiveRecording {
             routes: ctx.channel_builder("/route").build(),
             shapes: ctx.channel_builder("/formation").build(),
             tracks: ctx.channel_builder(TRACKS_TOPIC).build(),
+            sensed: ctx.channel_builder(SENSED_TOPIC).build(),
+            marks: Vec::new(),
             leader: scenario
                 .robots
                 .iter()
@@ -275,7 +281,8 @@ impl LiveRecording {
 
 impl Scene {
     /// Each robot's frame and state from its telemetry, the robots' bodies (once) and
-    /// the slots, the route when it changed, the shape when it changed, the tracks.
+    /// the slots, the route when it changed, the shape when it changed, the tracks, the
+    /// sensed marks when they changed.
     fn update(&mut self, station: &BaseStation, now_ms: u32, t: u64) {
         let mut transforms = Vec::new();
         for (id, status) in station.robots() {
@@ -344,6 +351,7 @@ impl Scene {
         );
         self.note_route(station, t);
         self.note_shape(station, t);
+        self.note_sensed(station, t);
         let tracks: Vec<_> = station.tracks(now_ms).collect();
         if !tracks.is_empty() {
             self.tracks.log_with_time(
@@ -354,6 +362,22 @@ impl Scene {
                 t,
             );
         }
+    }
+
+    /// The sensed marks, when they changed, as in a simulation's recording.
+    fn note_sensed(&mut self, station: &BaseStation, t: u64) {
+        let marks = station.perception().in_order();
+        if marks == self.marks {
+            return;
+        }
+        self.sensed.log_with_time(
+            &SceneUpdate {
+                entities: vec![sensed_entity(t, &marks)],
+                ..Default::default()
+            },
+            t,
+        );
+        self.marks = marks;
     }
 
     /// The route, when it changed: a blue line strip, as in a simulation's recording.
