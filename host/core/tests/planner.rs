@@ -227,3 +227,50 @@ fn the_dead_band_still_turns_onto_a_heading_off_by_ten_degrees() {
         pose.heading.to_degrees()
     );
 }
+
+/// Held by movers, the leader does not plan again where marks only narrow the way (people
+/// standing round it): in a crowd such replans swung the route from one side to the other
+/// every second. Where marks block the way, it plans again at once, held or not.
+#[test]
+fn held_by_movers_a_narrowed_way_is_not_planned_again_a_blocked_one_is() {
+    use base_station::planner::route::RouteParams;
+    let goal = DVec2::new(20.0, 0.0);
+    // 0.9 m off the way: narrower than the wide shape needs, wide enough for a robot.
+    let narrowing = Obstacle::Circle {
+        center: DVec2::new(6.0, 1.0),
+        radius: 0.1,
+    };
+    let blocking = Obstacle::Circle {
+        center: DVec2::new(8.0, 0.05),
+        radius: 0.1,
+    };
+    let replans = |held: bool, sensed: &Obstacle| {
+        let mut planner = Planner::routed(
+            PlannerParams::DEFAULT,
+            vec![goal],
+            0.0,
+            RouteParams::for_fleet(FOOTPRINT, 3.0, 0.4),
+        );
+        let empty = Map::new(Vec::new());
+        planner.step(0.0, 0.1, start(), &empty, 0.0, 1.0);
+        assert_eq!(planner.replans(), 0);
+        planner.set_waiting(held);
+        planner.add_obstacles(std::slice::from_ref(sensed));
+        let map = Map::new(vec![sensed.clone()]);
+        for k in 1..=20 {
+            planner.step(k as f64 * 0.1, 0.1, start(), &map, 0.0, 0.0);
+        }
+        planner.replans()
+    };
+    assert_eq!(
+        replans(false, &narrowing),
+        1,
+        "narrowed, moving: planned again"
+    );
+    assert_eq!(
+        replans(true, &narrowing),
+        0,
+        "narrowed, held: the route is kept"
+    );
+    assert_eq!(replans(true, &blocking), 1, "blocked, held: planned again");
+}

@@ -201,6 +201,8 @@ pub struct Planner {
     brake: Option<f64>,
     /// Speeding up harder than `max_accel` allows, m/s² (getting going among movers).
     accel: Option<f64>,
+    /// Movers hold the leader: a way that only narrows is not planned again.
+    waiting: bool,
 }
 
 /// The route layer's state.
@@ -326,6 +328,7 @@ impl Planner {
             no_route_said: false,
             brake: None,
             accel: None,
+            waiting: false,
         }
     }
 
@@ -695,7 +698,8 @@ impl Planner {
         }
         // Blocking the way: plan again now. Narrowing it below what the wide formation
         // needs (the route's cost changed): plan again, at most once a second, since a
-        // street with something parked in it narrows with every scan.
+        // street with something parked in it narrows with every scan; not while movers
+        // hold the leader (see `set_waiting`).
         let (hard, wide) = (routing.params.hard_clearance, routing.params.wide_clearance);
         let nearest = routing.route.as_ref().map_or(f64::INFINITY, |r| {
             nearest_to_route(&routing.unchecked, r, routing.s, wide)
@@ -706,7 +710,7 @@ impl Planner {
         if blocked || due {
             routing.unchecked.clear();
         }
-        if blocked || (due && nearest < wide) {
+        if blocked || (due && nearest < wide && !self.waiting) {
             tracing::info!(blocked, "something unmapped on the way: planning again");
             routing.replans += 1;
             routing.route = None;
@@ -822,6 +826,18 @@ impl Planner {
     /// for someone in its way; `None`: at `max_accel`.
     pub fn set_braking(&mut self, accel: Option<f64>) {
         self.brake = accel;
+    }
+
+    /// Whether movers hold the leader (the yielding layer's call, the period before).
+    /// While they do, marks that only narrow the way ahead (people standing round it)
+    /// do not make the route be planned again; marks that block it still do, and a hold
+    /// that lasts brings its own way round (`[yielding] replan_after_s`). Planned again
+    /// at every narrowing, the route of a fleet held among standing people swung between
+    /// a way round to the north and one to the south every second or so, and the leader
+    /// turned back and forth where it stood (`plaza-0.2-social-seed1540`: 179 replans,
+    /// the goal never reached).
+    pub fn set_waiting(&mut self, held: bool) {
+        self.waiting = held;
     }
 
     /// Speeds up at up to `accel` (m/s², above `max_accel`) while set: the leader

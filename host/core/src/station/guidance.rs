@@ -112,6 +112,11 @@ impl Guidance {
         self.planner.set_braking(accel);
     }
 
+    /// Whether movers hold the leader ([`crate::planner::Planner::set_waiting`]).
+    pub fn set_waiting(&mut self, held: bool) {
+        self.planner.set_waiting(held);
+    }
+
     /// Speeds up harder than the planner's comfort allows (among movers), or not.
     pub fn set_speeding_up(&mut self, accel: Option<f64>) {
         self.planner.set_speeding_up(accel);

@@ -586,6 +586,7 @@ impl BaseStation {
         let braking = y.share * self.cfg.planner.max_speed < leader.v - 0.05;
         let brake = braking.then_some(self.cfg.yield_brake);
         self.guidance.set_braking(brake);
+        self.guidance.set_waiting(y.held);
         let resume = !movers.is_empty();
         self.guidance
             .set_speeding_up(resume.then_some(self.resume_accel()));
