@@ -59,8 +59,10 @@ struct Scene {
     shapes: Channel<FormationShape>,
     tracks: Channel<SceneUpdate>,
     sensed: Channel<SceneUpdate>,
-    /// The sensed marks last logged.
+    /// The sensed marks last logged, and the station's clock when they were last
+    /// looked at, ms.
     marks: Vec<Obstacle>,
+    marks_ms: Option<u32>,
     leader: u16,
     footprint: f64,
     track_width: f64,
@@ -162,6 +164,7 @@ impl LiveRecording {
             tracks: ctx.channel_builder(TRACKS_TOPIC).build(),
             sensed: ctx.channel_builder(SENSED_TOPIC).build(),
             marks: Vec::new(),
+            marks_ms: None,
             leader: scenario
                 .robots
                 .iter()
@@ -351,7 +354,7 @@ impl Scene {
         );
         self.note_route(station, t);
         self.note_shape(station, t);
-        self.note_sensed(station, t);
+        self.note_sensed(station, now_ms, t);
         let tracks: Vec<_> = station.tracks(now_ms).collect();
         if !tracks.is_empty() {
             self.tracks.log_with_time(
@@ -364,8 +367,16 @@ impl Scene {
         }
     }
 
-    /// The sensed marks, when they changed, as in a simulation's recording.
-    fn note_sensed(&mut self, station: &BaseStation, t: u64) {
+    /// The sensed marks, looked at once a second and logged where they changed, as in a
+    /// simulation's recording (ordering thousands of them at 10 Hz would cost the loop).
+    fn note_sensed(&mut self, station: &BaseStation, now_ms: u32, t: u64) {
+        if self
+            .marks_ms
+            .is_some_and(|last| now_ms.wrapping_sub(last) < 1000)
+        {
+            return;
+        }
+        self.marks_ms = Some(now_ms);
         let marks = station.perception().in_order();
         if marks == self.marks {
             return;
