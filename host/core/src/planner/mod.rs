@@ -201,9 +201,14 @@ pub struct Planner {
     brake: Option<f64>,
     /// Speeding up harder than `max_accel` allows, m/s² (getting going among movers).
     accel: Option<f64>,
-    /// Movers hold the leader: a way that only narrows is not planned again.
+    /// Movers hold the leader: a way that only narrows is planned again at most every
+    /// [`HELD_REPLAN_S`].
     waiting: bool,
 }
+
+/// Held by movers, the leader plans again where marks only narrow its way at most this
+/// often, s (see [`Planner::set_waiting`]).
+pub const HELD_REPLAN_S: f64 = 5.0;
 
 /// The route layer's state.
 #[derive(Debug, Clone)]
@@ -698,19 +703,21 @@ impl Planner {
         }
         // Blocking the way: plan again now. Narrowing it below what the wide formation
         // needs (the route's cost changed): plan again, at most once a second, since a
-        // street with something parked in it narrows with every scan; not while movers
-        // hold the leader (see `set_waiting`).
+        // street with something parked in it narrows with every scan; while movers hold
+        // the leader, at most every `HELD_REPLAN_S` (see `set_waiting`).
         let (hard, wide) = (routing.params.hard_clearance, routing.params.wide_clearance);
         let nearest = routing.route.as_ref().map_or(f64::INFINITY, |r| {
             nearest_to_route(&routing.unchecked, r, routing.s, wide)
         });
-        let due = now_s - routing.last_attempt_s >= 1.0;
+        let since = now_s - routing.last_attempt_s;
+        let due = since >= 1.0;
+        let due_held = since >= HELD_REPLAN_S;
         let blocked = nearest < hard;
         // Until a narrowing check is due, what was sensed waits to be checked again.
         if blocked || due {
             routing.unchecked.clear();
         }
-        if blocked || (due && nearest < wide && !self.waiting) {
+        if blocked || (due && nearest < wide && (!self.waiting || due_held)) {
             tracing::info!(blocked, "something unmapped on the way: planning again");
             routing.replans += 1;
             routing.route = None;
@@ -830,12 +837,14 @@ impl Planner {
 
     /// Whether movers hold the leader (the yielding layer's call, the period before).
     /// While they do, marks that only narrow the way ahead (people standing round it)
-    /// do not make the route be planned again; marks that block it still do, and a hold
-    /// that lasts brings its own way round (`[yielding] replan_after_s`). Planned again
-    /// at every narrowing, the route of a fleet held among standing people swung between
-    /// a way round to the north and one to the south every second or so, and the leader
-    /// turned back and forth where it stood (`plaza-0.2-social-seed1540`: 179 replans,
-    /// the goal never reached).
+    /// make the route be planned again at most every [`HELD_REPLAN_S`]; marks that block
+    /// it still do at once, and a hold that lasts brings its own way round (`[yielding]
+    /// replan_after_s`). Planned again at every narrowing, once a second, the route of a
+    /// fleet held among standing people swung between a way round to the north and one
+    /// to the south, and the leader turned back and forth where it stood
+    /// (`plaza-0.2-social-seed1540`: 179 replans, the goal never reached). Never planned
+    /// again while held, it waited too long in denser crowds (0.3 persons/m²: 91 goals of
+    /// 128 instead of 94; at most every 5 s, 94; docs/results.md#movers).
     pub fn set_waiting(&mut self, held: bool) {
         self.waiting = held;
     }
