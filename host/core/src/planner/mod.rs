@@ -713,7 +713,10 @@ impl Planner {
         let due = since >= 1.0;
         let due_held = since >= HELD_REPLAN_S;
         let blocked = nearest < hard;
-        // Until a narrowing check is due, what was sensed waits to be checked again.
+        // Until a check is due (once a second), what was sensed waits to be checked
+        // again. Held, a check due before `HELD_REPLAN_S` looks for blocking only: what
+        // only narrowed the way is dropped then, and never looked at again (a mark is new
+        // once).
         if blocked || due {
             routing.unchecked.clear();
         }
