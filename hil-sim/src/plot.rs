@@ -173,6 +173,7 @@ where
         .draw()?;
     draw_site(&mut chart, world)?;
     draw_movers(&mut chart, world, report)?;
+    draw_marks(&mut chart, world)?;
     draw_paths(&mut chart, world)?;
     draw_snapshots(&mut chart, world)?;
     legend(&mut chart, SeriesLabelPosition::UpperLeft)
@@ -220,6 +221,48 @@ where
             ))?
             .label("planned route")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
+    }
+    Ok(())
+}
+
+/// The station's marks (what it sensed that the map does not show, and the room it keeps
+/// round a person who stopped): every mark it held at some time in the run, once each, in
+/// violet (the tracks' orange is beside them), over the movers. Where marks stood long or
+/// came again, the shade is the same: the figure says where the route was kept out, the
+/// recording's `/sensed` says when.
+fn draw_marks<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let violet = RGBColor(150, 80, 210);
+    // As one circle each, not a polygon: a crowd's run holds a few thousand marks.
+    let (x0, x1) = (
+        chart.backend_coord(&(0.0, 0.0)).0,
+        chart.backend_coord(&(1.0, 0.0)).0,
+    );
+    let per_metre = f64::from(x1 - x0);
+    let mut seen = std::collections::BTreeSet::new();
+    let mut first = true;
+    for o in world.sensed.iter().flat_map(|(_, marks)| marks) {
+        let Obstacle::Circle { center, radius } = o else {
+            continue;
+        };
+        if !seen.insert([center.x, center.y, *radius].map(f64::to_bits)) {
+            continue;
+        }
+        let r = (radius * per_metre).round().max(1.0) as i32;
+        let disc = Circle::new((center.x, center.y), r, violet.mix(0.12).filled());
+        let series = chart.draw_series(std::iter::once(disc))?;
+        if std::mem::take(&mut first) {
+            series
+                .label("marks (station): sensed, off the map, held at some time")
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 4), (x + 16, y + 4)], violet.mix(0.6).filled())
+                });
+        }
     }
     Ok(())
 }

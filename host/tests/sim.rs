@@ -258,6 +258,13 @@ fn street_crossing_reports_and_records_the_movers() {
     let (schema, sensed) = &count["/sensed"];
     assert_eq!(schema, "foxglove.SceneUpdate");
     assert!(*sensed >= 1, "{sensed}");
+    // And the figure draws the marks, in the station's colour, with their legend.
+    let figure = std::fs::read_to_string(dir.join("figure.svg")).unwrap();
+    assert!(figure.contains("marks (station)"), "no marks' legend");
+    assert!(
+        figure.contains(r##"opacity="0.12" fill="#9650D2""##),
+        "no mark drawn"
+    );
     // The shipped layout shows them.
     common::assert_layout_fits(&schemas, &[]);
     // `--layout`: every topic its plots name is a channel of this recording.
