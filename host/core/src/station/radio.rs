@@ -196,7 +196,8 @@ impl BaseStation {
         }
         told.extend(self.step_aside(following, bodies, movers, now_ms));
         let slots: Vec<(u16, DVec2)> = followers.iter().map(|f| (f.id, f.reference)).collect();
-        told.extend(self.hold_apart(following, bodies, &slots, now_ms));
+        let sent: Vec<(u16, DVec2)> = told.iter().map(|(id, p)| (*id, *p)).collect();
+        told.extend(self.hold_apart(following, bodies, &slots, &sent, now_ms));
         for (robot, point) in told {
             self.send_detour(robot, point, now_ms);
         }
@@ -240,12 +241,14 @@ impl BaseStation {
 
     /// The followers (as for `step_aside`) held short of another robot or off a slot
     /// (`slots`: each follower's) the leader stands on, and those stepping aside for
-    /// them (`spacing`), with the point each makes for.
+    /// them (`spacing`), with the point each makes for. `sent`: the points some are sent
+    /// to this period instead of their slots, which they set off for when let go.
     fn hold_apart(
         &mut self,
         following: &[spacing::Body],
         robots: &[spacing::Body],
         slots: &[(u16, DVec2)],
+        sent: &[(u16, DVec2)],
         now_ms: u32,
     ) -> Vec<(u16, DVec2)> {
         let fleet = spacing::Fleet {
@@ -256,6 +259,7 @@ impl BaseStation {
             brake: self.cfg.yield_brake,
             robot: self.cfg.robot,
             leader: leader_snapshot(robots, self.cfg.leader, self.told_twist()),
+            sent,
         };
         let mut told = self.spacing.step(now_ms, &fleet, slots, &self.world);
         if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {

@@ -268,9 +268,9 @@ impl Spacing {
                 // The slot moves on with the leader: judged on the way to it as it was
                 // when the hold began, two followers 0.7 m apart held each other for
                 // 220 s (plaza-0.1-social-seed305).
-                Some(h) if h.to_slot.is_some() && standing => way_to_slot(f, slots, fleet.offset),
+                Some(h) if h.to_slot.is_some() && standing => way_to_goal(f, slots, fleet),
                 Some(h) => h.to_slot,
-                None if standing => way_to_slot(f, slots, fleet.offset),
+                None if standing => way_to_goal(f, slots, fleet),
                 None => None,
             };
             // Toward its slot it sets off forward, whatever its speed's sign standing.
@@ -284,7 +284,7 @@ impl Spacing {
             let hold = converging(f, fleet.robots, fleet.footprint, fleet.brake)
                 || if was.is_some() || to_slot.is_some() {
                     free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M
-                        || to_slot.is_some() && !sets_off_clear(f, slots, fleet)
+                        || to_slot.is_some() && !fleet.sets_off_to_goal_clear(f, slots)
                 } else {
                     f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake)
                 };
@@ -387,10 +387,10 @@ impl Spacing {
     }
 }
 
-/// The way from a follower's control point to its slot (radians), if it has one and is
-/// not there already.
-fn way_to_slot(f: &Body, slots: &[(u16, DVec2)], offset: f64) -> Option<f64> {
-    let to = slot_of(slots, f.id)? - f.control(offset);
+/// The way from a follower's control point to its goal (radians; the point it is sent
+/// to, else its slot), if it has one and is not there already.
+fn way_to_goal(f: &Body, slots: &[(u16, DVec2)], fleet: &Fleet) -> Option<f64> {
+    let to = fleet.goal(slots, f.id)? - f.control(fleet.offset);
     (to.length() > SET_OFF_M).then(|| to.to_angle())
 }
 
@@ -413,7 +413,7 @@ enum Turn {
 /// that swings clear, and goes once it faces its slot with the way clear.
 /// `turning`: the point of a turn under way.
 fn turn(f: &Body, turning: Option<DVec2>, slots: &[(u16, DVec2)], fleet: &Fleet) -> Turn {
-    let Some(slot) = slot_of(slots, f.id) else {
+    let Some(slot) = fleet.goal(slots, f.id) else {
         return Turn::Stay;
     };
     let control = f.control(fleet.offset);
@@ -425,7 +425,7 @@ fn turn(f: &Body, turning: Option<DVec2>, slots: &[(u16, DVec2)], fleet: &Fleet)
     let along = Body { heading: way, ..*f };
     if facing
         && free(&along, 1.0, fleet.robots, fleet.footprint) >= CLEAR_M
-        && sets_off_clear(f, slots, fleet)
+        && fleet.sets_off_to_goal_clear(f, slots)
     {
         return Turn::Go;
     }
@@ -461,6 +461,29 @@ pub struct Fleet<'a> {
     pub robot: RobotConfig,
     /// The leader as the followers' law takes it, if known.
     pub leader: Option<LeaderSnapshot>,
+    /// The points (for the control point) followers are sent to this period instead of
+    /// their slots: a way round an obstacle, a step aside for someone passing.
+    pub sent: &'a [(u16, DVec2)],
+}
+
+impl Fleet<'_> {
+    /// Where follower `id`'s control point makes for: the point it is sent to, else its
+    /// slot (`slots`).
+    fn goal(&self, slots: &[(u16, DVec2)], id: u16) -> Option<DVec2> {
+        slot_of(self.sent, id).or_else(|| slot_of(slots, id))
+    }
+
+    /// Whether standing follower `f` swings clear of the robots beside it setting off for
+    /// its goal, as its firmware drives there: a detour's law toward a point it is sent to,
+    /// else the L-φ law toward its slot. Judged on its slot while it was sent round a bin,
+    /// a follower let go backed toward the detour point, turning, into the flank of one
+    /// standing beside it (plaza-0.3-social-seed1615, in a variant of 2026-12-06).
+    fn sets_off_to_goal_clear(&self, f: &Body, slots: &[(u16, DVec2)]) -> bool {
+        match slot_of(self.sent, f.id) {
+            Some(point) => steps_clear(f, point, self),
+            None => sets_off_clear(f, slots, self),
+        }
+    }
 }
 
 /// The follower standing nearest on `held`'s way, and the point (for its control point)
@@ -553,6 +576,7 @@ mod tests {
             brake: 0.8,
             robot: RobotConfig::DEFAULT,
             leader: None,
+            sent: &[],
         }
     }
 
@@ -664,7 +688,7 @@ mod tests {
         let slot = [(2, DVec2::new(18.606, 15.265))];
         // Judged as a straight line, the way to its slot is clear: follower 1 is within
         // 40° of it, the ring's to see…
-        let way = way_to_slot(&two, &slot, 0.2).unwrap();
+        let way = way_to_goal(&two, &slot, &fleet(&[one, two])).unwrap();
         assert!(
             free(
                 &Body {
@@ -825,5 +849,37 @@ mod tests {
         // One behind the other in a line, 1 m apart: the ring's to keep.
         let one = body(1, 1.6, 0.0, 0.0, 0.5);
         assert!(s.step(100, &fleet(&[one, two]), &[], &open()).is_empty());
+    }
+
+    #[test]
+    fn a_follower_sent_round_something_is_let_go_only_where_its_way_there_is_clear() {
+        // plaza-0.3-social-seed1615 (a variant of 2026-12-06): follower 2 stands facing
+        // west with follower 1 at its flank, 0.61 m apart, and is sent round a bin to a
+        // point 0.8 m south of it.
+        let two = Body::at(2, 13.04, 13.27, 170.2, 0.0);
+        let one = Body::at(1, 13.274, 13.836, -174.8, 0.0);
+        let slots = [(2, DVec2::new(11.0, 13.4))];
+        let bodies = [one, two];
+        // The leader 1 m on from the slot, facing west, standing.
+        let led = Fleet {
+            leader: Some(LeaderSnapshot {
+                pose: Pose::new(10.0, 13.4, std::f32::consts::PI),
+                v: 0.0,
+                omega: 0.0,
+            }),
+            ..fleet(&bodies)
+        };
+        // Setting off west for its slot swings it clear …
+        assert!(led.sets_off_to_goal_clear(&two, &slots));
+        // … but its firmware drives the detour: it backs east, turning, into 1's flank.
+        let sent = [(2, DVec2::new(13.06, 12.47))];
+        let sent_round = Fleet { sent: &sent, ..led };
+        assert!(!sent_round.sets_off_to_goal_clear(&two, &slots));
+        let way = way_to_goal(&two, &slots, &sent_round).unwrap();
+        assert!(
+            (way.to_degrees() + 75.0).abs() < 10.0,
+            "{}",
+            way.to_degrees()
+        );
     }
 }
