@@ -213,7 +213,8 @@ pub struct Told {
 }
 
 /// A follower held: the way it was moving (1 forward, −1 backing) and since when; for one
-/// held before it set off, the way to its slot (radians); the point it makes for, fixed
+/// held before it set off, the way to its goal (its slot, or the point it is sent to;
+/// radians); the point it makes for, fixed
 /// when the hold began (recomputed from where it was each period, the point ran ahead of
 /// a follower at 0.7 m/s by its stopping distance, and it never stopped: it grazed
 /// another follower converging beside it, plaza-0.3-social-seed102).
@@ -248,7 +249,8 @@ impl Spacing {
     /// from.
     ///
     /// A follower standing is judged on the way to its slot (`slots`: each one's, for its
-    /// control point), where it will set off: judged on its heading, it was held only
+    /// control point), or to the point it is sent to instead (`fleet.sent`), where it
+    /// will set off: judged on its heading, it was held only
     /// once it moved, a period and the station's delay late, and a follower turning
     /// from standing toward its slot grazed the flank of one standing beside it
     /// (plaza-0.3-social-seed402).
