@@ -501,8 +501,9 @@ impl Planner {
     }
 
     /// One planning step. `half_width`: the formation's lateral half-width (0 for a line),
-    /// added to the footprint; `speed_scale` in [0, 1] slows the leader (followers lagging).
-    /// What happened is noted for [`Planner::take_events`].
+    /// added to the footprint; `speed_scale` under 1 slows the leader (followers lagging),
+    /// over 1 hurries it out of someone's way (the station's `yielding`). What happened is
+    /// noted for [`Planner::take_events`].
     pub fn step(
         &mut self,
         now_s: f64,
@@ -610,7 +611,7 @@ impl Planner {
         let p = self.params;
         let omega = self.turn_toward(p.heading_gain * err, dt);
         let align = err.cos().max(0.0);
-        let target = p.max_speed * strength * align * align * speed_scale.clamp(0.0, 1.0);
+        let target = p.max_speed * strength * align * align * speed_scale.max(0.0);
         self.ramp_to(target, dt);
         Command {
             v: self.v,
@@ -962,7 +963,7 @@ impl Planner {
         let align = err.cos().max(0.0);
         // Brake for the goal: v ≤ √(2·a·d) with half the acceleration limit.
         let braking = (p.max_accel * to_end).sqrt();
-        let target = (p.max_speed * align * align * speed_scale.clamp(0.0, 1.0)).min(braking);
+        let target = (p.max_speed * align * align * speed_scale.max(0.0)).min(braking);
         self.ramp_to(target, dt);
         self.mode = Mode::Route;
         Command {

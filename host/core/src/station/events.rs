@@ -92,6 +92,11 @@ pub enum StationEvent {
     SteppingBack {
         at_ms: u32,
     },
+    /// The leader, with no pace safe, began to go on out of the way of someone who would
+    /// walk into it standing (`yielding`).
+    ClearingWay {
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -132,6 +137,7 @@ impl StationEvent {
             E::FleetReady { at_ms } => (*at_ms, "fleet_ready".into(), None),
             E::Yielding { at_ms } => (*at_ms, "yielding".into(), Some(leader)),
             E::SteppingBack { at_ms } => (*at_ms, "stepping_back".into(), Some(leader)),
+            E::ClearingWay { at_ms } => (*at_ms, "clearing_way".into(), Some(leader)),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }

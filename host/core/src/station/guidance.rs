@@ -43,6 +43,14 @@ pub struct Look {
     pub ahead: Vec<DVec2>,
 }
 
+/// Whether a shape change under way slows the leader ([`Guidance::drive`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShapeChange {
+    Slows,
+    /// Not while it goes on out of someone's way (`yielding`).
+    Ignored,
+}
+
 /// What [`Guidance::drive`] gives: the leader's command and what happened.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Drive {
@@ -214,9 +222,19 @@ impl Guidance {
         waiting
     }
 
-    /// Step 2: the leader's command, slowed by `waiting` and by a shape change.
-    pub fn drive(&mut self, now_s: f64, leader: PlanPose, waiting: f64, world: &Map) -> Drive {
-        let speed_scale = waiting.min(self.formation.speed_factor(now_s));
+    /// Step 2: the leader's command, slowed by `waiting` and (`change`) by a shape change.
+    pub fn drive(
+        &mut self,
+        now_s: f64,
+        leader: PlanPose,
+        waiting: f64,
+        change: ShapeChange,
+        world: &Map,
+    ) -> Drive {
+        let speed_scale = match change {
+            ShapeChange::Slows => waiting.min(self.formation.speed_factor(now_s)),
+            ShapeChange::Ignored => waiting,
+        };
         let half_width = self.formation.half_width();
         let cmd = self
             .planner

@@ -49,7 +49,7 @@ use fixes::FixWatch;
 pub use fixes::{FixChange, FixLimits};
 use fleet::Fleet;
 pub use fleet::{is_following, LeaderEstimate, RobotStatus};
-pub use guidance::{Drive, Guidance, Look};
+pub use guidance::{Drive, Guidance, Look, ShapeChange};
 pub use localize::NotForwarded;
 use localize::OutgoingFix;
 pub use operator::OperatorCommand;
@@ -202,6 +202,8 @@ pub struct BaseStation {
     line_order: LineOrder,
     /// The leader backs out of someone's way (`stepping_back`).
     backing: bool,
+    /// The leader goes on out of someone's way (`yielding`).
+    clearing: bool,
 }
 
 impl BaseStation {
@@ -249,6 +251,7 @@ impl BaseStation {
             passing: Passing::default(),
             line_order: LineOrder::default(),
             backing: false,
+            clearing: false,
         }
     }
 
@@ -406,10 +409,16 @@ impl BaseStation {
         }
         self.keep_aside(leader.pose, &movers, now_s);
         self.go_round_followers(&look, robots, now_ms);
-        let (pace, back) = self.yield_to_movers(&leader, &look, &movers, now_ms);
+        let y = self.yield_to_movers(&leader, &look, &movers, now_ms);
+        // Going on to clear someone's way, the leader does not wait for its followers.
+        let (scale, change) = if y.clearing {
+            (y.share, ShapeChange::Ignored)
+        } else {
+            (look.waiting.min(y.share), ShapeChange::Slows)
+        };
         let drive = self
             .guidance
-            .drive(now_s, leader.pose, look.waiting.min(pace), &self.world);
+            .drive(now_s, leader.pose, scale, change, &self.world);
         self.report_planner(&drive.events, now_ms);
         if drive
             .events
@@ -418,7 +427,7 @@ impl BaseStation {
         {
             self.drop_lanes();
         }
-        let command = if back {
+        let command = if y.back {
             (-self.cfg.reverse_speed, 0.0)
         } else {
             (drive.v, drive.omega)
@@ -555,12 +564,13 @@ impl BaseStation {
         look: &Look,
         movers: &[TrackView],
         now_ms: u32,
-    ) -> (f64, bool) {
+    ) -> Yield {
         let followers = self.fleet.follower_positions(now_ms);
         let fleet = yielding::Fleet {
             leader: leader.pose,
             v: leader.v,
             max_speed: self.cfg.planner.max_speed,
+            hurry: self.cfg.follower_speed,
             max_accel: self.resume_accel(),
             brake: self.cfg.yield_brake.max(self.cfg.planner.max_accel),
             footprint: self.guidance.formation().spec().footprint,
@@ -599,8 +609,14 @@ impl BaseStation {
             self.events
                 .push(StationEvent::SteppingBack { at_ms: now_ms });
         }
+        if y.clearing && !self.clearing {
+            tracing::info!("the leader goes on out of someone's way");
+            self.events
+                .push(StationEvent::ClearingWay { at_ms: now_ms });
+        }
         self.backing = y.back;
-        (y.share, y.back)
+        self.clearing = y.clearing;
+        y
     }
 
     /// How hard the leader speeds up among movers: as hard as its followers may, not at

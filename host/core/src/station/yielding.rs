@@ -44,6 +44,15 @@
 //!
 //! Held for `replan_after_s` by movers (a crowd filling a street), the leader asks the
 //! planner for another way round where they stand.
+//!
+//! **Going on out of someone's way.** Away from a crowd, where no pace is safe and the
+//! mean way of someone the robots cannot count on runs through a robot standing, the
+//! leader goes on if that keeps every mean way [`TOUCH_M`] off the robots (then,
+//! committed, while it keeps them [`KEEP_CLEARING_M`] off): at its pace, or hurrying at
+//! up to `hurry`, not slowed for a shape change. A leader that went round someone
+//! standing in the street was crossing their way when they set off again, braked, and
+//! stood in it: they walked into it, where its pace would have taken it clear
+//! (`standing-person-oblivious-seed1806`, 2026-12-06).
 
 use std::collections::HashMap;
 
@@ -98,6 +107,12 @@ const NO_WORSE_M: f64 = 0.05;
 /// Moving brings nobody this close to a robot's footprint (the track's uncertainty on
 /// top), m.
 const TOUCH_M: f64 = 0.15;
+/// Going on to clear someone's way, the leader keeps going while every mean way keeps
+/// this far off the robots (it set off where they kept [`TOUCH_M`]). Kept on to where
+/// they kept none, it was still braking out of it when a walker crossing diagonally
+/// touched it; breaking off at once, it stood in the way again
+/// (`crossing-oblivious-seed1812`, `standing-person-oblivious-seed1811`), m.
+const KEEP_CLEARING_M: f64 = 0.075;
 /// Where it cannot keep clear of them either (a crowd all round), no faster than this.
 const SLOW_SHARE: f64 = 0.4;
 /// Speeding up again needs this much more room than keeping a pace, m.
@@ -118,6 +133,10 @@ pub struct Yield {
     /// Held, and someone who may not see it would walk into it standing: it backs out
     /// of their way (`stepping_back`).
     pub back: bool,
+    /// No pace is safe, and going on at `share` (over 1 where only hurrying does) is
+    /// what clears someone who would walk into the robots standing (see the module's
+    /// doc): not slowed for a shape change either.
+    pub clearing: bool,
 }
 
 /// What the rollout needs of the fleet now.
@@ -126,6 +145,8 @@ pub struct Fleet<'a> {
     /// The leader's speed now, m/s.
     pub v: f64,
     pub max_speed: f64,
+    /// How fast it may go to get out of the way of someone who would walk into it, m/s.
+    pub hurry: f64,
     pub max_accel: f64,
     /// How hard it brakes for someone in its way, m/s².
     pub brake: f64,
@@ -156,6 +177,8 @@ pub struct Yielding {
     crowded_s: Option<f64>,
     /// What is known of each track's manners, by track id.
     manners: HashMap<u32, Manners>,
+    /// Whether it went on last period to clear someone's way.
+    clearing: bool,
 }
 
 /// Whether a mover has shown it sees the robots.
@@ -177,6 +200,7 @@ impl Yielding {
             avoided_s: None,
             crowded_s: None,
             manners: HashMap::new(),
+            clearing: false,
         }
     }
 
@@ -208,16 +232,17 @@ impl Yielding {
         formation: &FormationManager,
         movers: &[TrackView],
     ) -> Yield {
-        let (share, wary) = if movers.is_empty() {
+        let ((share, clearing), wary) = if movers.is_empty() {
             // Nobody moves: what was known of anyone's manners is stale (someone who
             // stood for a while sets off as a stranger).
             self.manners.clear();
-            (1.0, Vec::new())
+            ((1.0, false), Vec::new())
         } else {
             let wary = self.wary(now_s, fleet, movers);
             (self.choose(now_s, fleet, formation, movers, &wary), wary)
         };
         self.last = share;
+        self.clearing = clearing;
         let held = share < HELD_BELOW;
         // Away from a crowd only: in one, someone is always behind.
         let back = held && !self.in_crowd(now_s) && self.backs(fleet, movers, &wary);
@@ -234,6 +259,7 @@ impl Yielding {
             began,
             avoid,
             back,
+            clearing,
         }
     }
 
@@ -255,7 +281,9 @@ impl Yielding {
 
     /// The fastest safe share, no faster than its courtesy allows (see the module's doc):
     /// any pace where it keeps everyone's room, `passing_share` where it cannot,
-    /// [`SLOW_SHARE`] where it would intrude; else a standstill.
+    /// [`SLOW_SHARE`] where it would intrude; else, where no pace is safe, one that
+    /// clears someone who would walk into it standing (and `true`: see the module's
+    /// doc), or a standstill.
     fn choose(
         &mut self,
         now_s: f64,
@@ -263,10 +291,12 @@ impl Yielding {
         formation: &FormationManager,
         movers: &[TrackView],
         wary: &[bool],
-    ) -> f64 {
+    ) -> (f64, bool) {
         let standing = rollout(fleet, formation, movers, 0.0, &self.spec);
         // In a crowd, someone's way always crosses the fleet's within a few seconds.
         let lone = !self.in_crowd(now_s);
+        // The unsafe pace that keeps the most room, where nothing is safe.
+        let mut going_on: Option<(f64, f64)> = None;
         // The shares come fastest first: the first one within its cap is the answer.
         for share in SHARES.into_iter().filter(|s| *s > 0.0) {
             let gaps = rollout(fleet, formation, movers, share, &self.spec);
@@ -280,6 +310,10 @@ impl Yielding {
                 .zip(wary)
                 .all(|((g, s), w)| safe(g, s, *w, lone, extra))
             {
+                let kept = room(&gaps);
+                if going_on.is_none_or(|(_, best)| kept > best) {
+                    going_on = Some((share, kept));
+                }
                 continue;
             }
             let cap = if each().any(|(g, s)| intrudes(g, s, extra)) {
@@ -290,10 +324,32 @@ impl Yielding {
                 1.0
             };
             if share <= cap + 1e-9 {
-                return share;
+                return (share, false);
             }
         }
-        0.0
+        // Nothing is safe. Away from a crowd, someone who would walk into the robots
+        // standing may still be cleared by going on: at a pace the planner keeps, else
+        // hurrying. (In crowds of 0.3 persons/m² it went on among new tracks, and 87
+        // worlds of 128 reached the goal instead of 93.)
+        let standing_room = room_of_wary(&standing, wary);
+        if !lone || standing_room >= 0.0 {
+            return (0.0, false);
+        }
+        // Once going on, it keeps going while that still keeps their ways half as far off.
+        let need = if self.clearing {
+            KEEP_CLEARING_M
+        } else {
+            TOUCH_M
+        };
+        if let Some((share, _)) = going_on.filter(|(_, kept)| *kept >= need) {
+            return (share, true);
+        }
+        let hurry = fleet.hurry / fleet.max_speed;
+        let hurrying = room(&rollout(fleet, formation, movers, hurry, &self.spec));
+        if hurry > 1.0 && hurrying >= need {
+            return (hurry, true);
+        }
+        (0.0, false)
     }
 
     /// Which movers the robots stop for when they are about to touch one, even if
@@ -366,6 +422,9 @@ struct Gaps {
     ahead: f64,
     crossing: f64,
     owed: f64,
+    /// The least gap over [`CROSSING_S`] to the mover's footprint on its mean way (its
+    /// disc not grown by the track's uncertainty).
+    bare: f64,
 }
 
 /// Each mover's [`Gaps`], the leader making for `share` of its full pace.
@@ -391,6 +450,7 @@ fn rollout(
             ahead: f64::INFINITY,
             crossing: f64::INFINITY,
             owed: owed(m, spec.personal_space_m),
+            bare: f64::INFINITY,
         })
         .collect();
     let steps = (spec.horizon_s.max(CROSSING_S) / STEP_S).ceil() as usize;
@@ -431,6 +491,8 @@ fn rollout(
             }
             if t <= CROSSING_S + 1e-9 {
                 g.crossing = g.crossing.min(least);
+                let grown = radius - m.radius.max(MIN_RADIUS_M);
+                g.bare = g.bare.min(least + grown);
             }
         }
     }
@@ -449,6 +511,21 @@ fn safe(g: &Gaps, s: &Gaps, wary: bool, lone: bool, extra: f64) -> bool {
     let stop_for = wary && g.imminent < TOUCH_M + extra;
     let late = lone && wary && g.crossing < TOUCH_M + extra && g.crossing < s.crossing - NO_WORSE_M;
     (!touch || (!worse && !stop_for)) && !late
+}
+
+/// The least room a pace leaves anyone on their mean way over [`CROSSING_S`], m
+/// (negative: their way runs through a robot).
+fn room(gaps: &[Gaps]) -> f64 {
+    gaps.iter().map(|g| g.bare).fold(f64::INFINITY, f64::min)
+}
+
+/// The same, for those the robots cannot count on to steer round them (`wary`).
+fn room_of_wary(gaps: &[Gaps], wary: &[bool]) -> f64 {
+    gaps.iter()
+        .zip(wary)
+        .filter(|(_, w)| **w)
+        .map(|(g, _)| g.bare)
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Whether a pace brings the robots within [`CLEAR_M`] of a mover over [`IMMINENT_S`]
@@ -587,6 +664,7 @@ mod tests {
             },
             v: 0.45,
             max_speed: 0.45,
+            hurry: 0.8,
             max_accel: 0.3,
             brake: 0.8,
             footprint: 0.3,
@@ -647,6 +725,20 @@ mod tests {
         let others = [person(2, (-3.0, 3.0), (1.0, 0.0)), crossing];
         assert!(y.crowded(0.0, DVec2::ZERO, &others));
         assert_eq!(decide(&mut y, 0.0, &others), 1.0);
+    }
+
+    #[test]
+    fn the_leader_goes_on_out_of_the_way_of_a_stranger_who_would_walk_into_it_standing() {
+        // Someone setting off 1.2 m to the right and 0.4 m behind, walking across at
+        // 1.2 m/s: about to come within touch whatever the leader does, their way runs
+        // through it standing, and keeps clear of it at its pace.
+        let setting_off = person(1, (-0.4, -1.2), (0.0, 1.2));
+        let mut y = Yielding::new(YieldingSpec::default());
+        assert_eq!(decide(&mut y, 0.0, &[setting_off]), 1.0);
+        // Coming at where it goes on as well: it stands (and is walked into, not moving).
+        let ahead = person(1, (0.3, -1.2), (0.0, 1.2));
+        let mut y = Yielding::new(YieldingSpec::default());
+        assert_eq!(decide(&mut y, 0.0, &[ahead]), 0.0);
     }
 
     #[test]
