@@ -538,14 +538,30 @@ impl BaseStation {
         let Some(leader) = bodies.iter().find(|b| b.id == self.cfg.leader).copied() else {
             return;
         };
+        let people: Vec<TrackView> = self.tracker.views(now_ms).collect();
         let fleet = blocking::Fleet {
             leader,
             ahead: &look.ahead,
             followers: following,
+            robots: bodies,
             footprint: self.guidance.formation().spec().footprint,
+            offset: self.cfg.control_offset,
+            site: &self.cfg.map,
+            people: &people,
         };
         let now_s = now_ms as f64 / 1000.0;
-        if let Some((at, radius)) = self.blocking.step(now_s, &fleet) {
+        let blocked = self.blocking.step(now_s, &fleet);
+        for (robot, point, began) in blocked.backs {
+            if began {
+                tracing::info!(robot, "a follower in the leader's way backs away from it");
+                self.events.push(StationEvent::FollowerGivesWay {
+                    robot,
+                    at_ms: now_ms,
+                });
+            }
+            self.send_detour(robot, point, now_ms);
+        }
+        if let Some((at, radius)) = blocked.avoid {
             tracing::info!(
                 x = at.x,
                 y = at.y,

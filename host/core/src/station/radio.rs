@@ -287,7 +287,7 @@ impl BaseStation {
     }
 
     /// Tells a follower to make for `point` instead of its slot, this period.
-    fn send_detour(&mut self, robot: u16, point: DVec2, now_ms: u32) {
+    pub(super) fn send_detour(&mut self, robot: u16, point: DVec2, now_ms: u32) {
         let (Ok(x_mm), Ok(y_mm)) = (
             units::metres_to_mm(point.x as f32),
             units::metres_to_mm(point.y as f32),
