@@ -44,10 +44,11 @@ const BACK_M: f64 = 0.5;
 const BACK_FOR_S: f64 = 3.0;
 /// What the way back keeps beyond the footprints from the site and the other robots, m.
 const BACK_MARGIN_M: f64 = 0.1;
+/// A tracked person's disc, where they are and a second on, counts at least this and at
+/// most [`PERSON_MAX_M`] in radius, m.
 const PERSON_M: f64 = 0.3;
-/// A person's disc counts at least [`PERSON_M`] across (where they are and a second on),
-/// and at most this: a group the tracker holds as one spans
-/// metres, and the follower's ring, looking behind it, stops it short of anyone there, m.
+/// A group the tracker holds as one spans metres; the follower's ring, looking behind it,
+/// stops it short of anyone there, m.
 const PERSON_MAX_M: f64 = 0.5;
 /// And from a person's disc: backing is moving, and a moving robot within 0.5 m of a
 /// person's footprint intrudes on them (`docs/sim.md`), m.
