@@ -75,13 +75,19 @@ pub struct Fleet<'a> {
     pub people: &'a [TrackView],
 }
 
-/// Which follower holds the leader, since when (for the way round, and without a break),
-/// and the followers backing away from it.
+/// Which followers hold the leader, and the followers backing away from it.
 #[derive(Debug, Default)]
 pub struct Blocking {
-    held: BTreeMap<u16, f64>,
-    since: BTreeMap<u16, f64>,
+    held: BTreeMap<u16, Held>,
     backing: BTreeMap<u16, Back>,
+}
+
+/// A follower standing in the leader's way: since when it counts toward the next way
+/// round it, and toward backing off it (each counts afresh once it was due), s.
+#[derive(Debug, Clone, Copy)]
+struct Held {
+    round_from_s: f64,
+    back_from_s: f64,
 }
 
 /// A follower backing away from the leader: where its control point makes for, since when.
@@ -108,41 +114,32 @@ impl Blocking {
     pub fn step(&mut self, now_s: f64, fleet: &Fleet) -> Blocked {
         let blocking = in_the_way(fleet);
         self.held.retain(|id, _| blocking.contains(id));
-        self.since.retain(|id, _| blocking.contains(id));
         self.backing.retain(|_, b| now_s - b.since_s < BACK_FOR_S);
         let mut out = Blocked::default();
         for id in blocking {
             let Some(f) = fleet.followers.iter().find(|f| f.id == id) else {
                 continue;
             };
-            let since = *self.held.entry(id).or_insert(now_s);
-            if now_s - since >= HELD_S && out.avoid.is_none() {
+            let held = self.held.entry(id).or_insert(Held {
+                round_from_s: now_s,
+                back_from_s: now_s,
+            });
+            if now_s - held.round_from_s >= HELD_S && out.avoid.is_none() {
                 out.avoid = Some((f.position, fleet.footprint + MARGIN_M));
                 // Once per hold: it counts afresh from now.
-                self.held.insert(id, now_s);
+                held.round_from_s = now_s;
             }
-            let first = *self.since.entry(id).or_insert(now_s);
-            if now_s - first < BACK_AFTER_S || self.backing.contains_key(&id) {
+            if now_s - held.back_from_s < BACK_AFTER_S || self.backing.contains_key(&id) {
                 continue;
             }
-            // It backs off the leader; where another follower stands in that way, that one
-            // moves off it first (a line packed behind a leader that turned back).
-            let (who, point) = match way_off(f, fleet.leader.position, fleet) {
-                Ok(point) => (id, point),
-                Err(Some(other)) if other != fleet.leader.id => {
-                    let Some(o) = fleet.followers.iter().find(|o| o.id == other) else {
-                        continue;
-                    };
-                    if self.backing.contains_key(&other) {
-                        continue;
-                    }
-                    match way_off(o, f.position, fleet) {
-                        Ok(point) => (other, point),
-                        Err(_) => continue,
-                    }
-                }
-                Err(_) => continue,
+            let Some((who, point)) = self.way_made(f, fleet) else {
+                continue;
             };
+            if who == id {
+                if let Some(h) = self.held.get_mut(&id) {
+                    h.back_from_s = now_s;
+                }
+            }
             self.backing.insert(
                 who,
                 Back {
@@ -150,9 +147,6 @@ impl Blocking {
                     since_s: now_s,
                 },
             );
-            if who == id {
-                self.since.insert(id, now_s);
-            }
             out.backs.push((who, point, true));
         }
         for (id, b) in &self.backing {
@@ -161,6 +155,23 @@ impl Blocking {
             }
         }
         out
+    }
+
+    /// Who moves to make way for follower `f` standing in the leader's way, and the point
+    /// its control point makes for: `f` backing off the leader; where another follower
+    /// not backing yet stands in that way, that one moving off `f` first (a line packed
+    /// behind a leader that turned back).
+    fn way_made(&self, f: &Body, fleet: &Fleet) -> Option<(u16, DVec2)> {
+        match way_off(f, fleet.leader.position, fleet) {
+            Ok(point) => Some((f.id, point)),
+            Err(Some(other)) if other != fleet.leader.id && !self.backing.contains_key(&other) => {
+                let o = fleet.followers.iter().find(|o| o.id == other)?;
+                way_off(o, f.position, fleet)
+                    .ok()
+                    .map(|point| (other, point))
+            }
+            Err(_) => None,
+        }
     }
 }
 

@@ -202,8 +202,6 @@ pub struct BaseStation {
     line_order: LineOrder,
     /// The leader backs out of someone's way (`stepping_back`).
     backing: bool,
-    /// The leader goes on out of someone's way (`yielding`).
-    clearing: bool,
 }
 
 impl BaseStation {
@@ -251,7 +249,6 @@ impl BaseStation {
             passing: Passing::default(),
             line_order: LineOrder::default(),
             backing: false,
-            clearing: false,
         }
     }
 
@@ -625,13 +622,12 @@ impl BaseStation {
             self.events
                 .push(StationEvent::SteppingBack { at_ms: now_ms });
         }
-        if y.clearing && !self.clearing {
+        if y.clearing_began {
             tracing::info!("the leader goes on out of someone's way");
             self.events
                 .push(StationEvent::ClearingWay { at_ms: now_ms });
         }
         self.backing = y.back;
-        self.clearing = y.clearing;
         y
     }
 

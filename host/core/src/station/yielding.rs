@@ -135,8 +135,9 @@ pub struct Yield {
     pub back: bool,
     /// No pace is safe, and going on at `share` (over 1 where only hurrying does) is
     /// what clears someone who would walk into the robots standing (see the module's
-    /// doc): not slowed for a shape change either.
+    /// doc): not slowed for a shape change either. It just began: `clearing_began`.
     pub clearing: bool,
+    pub clearing_began: bool,
 }
 
 /// What the rollout needs of the fleet now.
@@ -242,6 +243,7 @@ impl Yielding {
             (self.choose(now_s, fleet, formation, movers, &wary), wary)
         };
         self.last = share;
+        let clearing_began = clearing && !self.clearing;
         self.clearing = clearing;
         let held = share < HELD_BELOW;
         // Away from a crowd only: in one, someone is always behind.
@@ -260,6 +262,7 @@ impl Yielding {
             avoid,
             back,
             clearing,
+            clearing_began,
         }
     }
 
@@ -345,8 +348,7 @@ impl Yielding {
             return (share, true);
         }
         let hurry = fleet.hurry / fleet.max_speed;
-        let hurrying = room(&rollout(fleet, formation, movers, hurry, &self.spec));
-        if hurry > 1.0 && hurrying >= need {
+        if hurry > 1.0 && room(&rollout(fleet, formation, movers, hurry, &self.spec)) >= need {
             return (hurry, true);
         }
         (0.0, false)
