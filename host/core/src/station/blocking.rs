@@ -1,8 +1,9 @@
 //! The leader's way blocked by its own follower. In the line the followers stand on the
 //! path the leader drove; where the leader's route turns back along it (a way round
-//! people in a crowd), the follower behind it stands in its way. The leader's ring holds
-//! the leader short of the follower, and the follower's ring holds the follower short of
-//! its slot, which is where the leader stands: in dense crowds (0.2 persons/m², seeds
+//! people in a crowd), the follower behind it stands in its way. The leader's ring (or,
+//! for a follower beside its ring's view, the station's cap) holds the leader short of
+//! the follower, and the follower's ring holds the follower short of its slot, which is
+//! where the leader stands: in dense crowds (0.2 persons/m², seeds
 //! 301–332) the leader of the worlds that missed their goal stood 19 % of its standing
 //! time with a robot of its own in front of it (`docs/results.md#movers`). The planner
 //! knows only that it makes no progress, and marks a disc ahead of it on its route. The
@@ -20,7 +21,7 @@ use std::collections::BTreeMap;
 
 use glam::DVec2;
 
-use super::spacing::{Body, STANDING};
+use super::spacing::{self, Body, STANDING};
 use crate::geometry::closest_on_segment;
 use crate::map::Map;
 use crate::tracking::TrackView;
@@ -209,8 +210,11 @@ fn way_off(f: &Body, from: DVec2, fleet: &Fleet) -> Result<DVec2, Option<u16>> {
     Ok(f.position + heading * (fleet.offset + sign * BACK_M))
 }
 
-/// The followers standing in front of the standing leader, within its ring's view and
-/// touching distance, on its way ahead.
+/// The followers standing in front of the standing leader, within touching distance, on
+/// its way ahead, and holding it: within its ring's view, or beside it where the station
+/// stops it short of them ([`spacing::free`]). Its route turning back past its line, the
+/// leader facing 47° off follower 1 stood 120 s held by the station for it, unseen here
+/// (`plaza-0.2-social-seed1755`, 2026-12-06).
 fn in_the_way(fleet: &Fleet) -> Vec<u16> {
     let l = &fleet.leader;
     if l.v.abs() > STANDING {
@@ -225,11 +229,18 @@ fn in_the_way(fleet: &Fleet) -> Vec<u16> {
             let to = f.position - l.position;
             f.v.abs() <= STANDING
                 && to.length() < touching
-                && l.sees(1.0, f.position)
+                && holds(l, f, fleet.footprint)
                 && near_way(fleet.ahead, f.position, on_way)
         })
         .map(|f| f.id)
         .collect()
+}
+
+/// Whether follower `f` holds the leader `l` going forward: its ring sees `f`, or its
+/// footprint would come within the robots' keeping distance of `f`'s before it moved
+/// [`NEAR_M`].
+fn holds(l: &Body, f: &Body, footprint: f64) -> bool {
+    l.sees(1.0, f.position) || spacing::free(l, 1.0, std::slice::from_ref(f), footprint) < NEAR_M
 }
 
 /// Whether `p` is within `within` of the first [`AHEAD_M`] of `way`.
@@ -292,6 +303,23 @@ mod tests {
         assert!(at == one[0].position && (r - (FP + MARGIN_M)).abs() < 1e-12);
         // Once per hold: not again the next period.
         assert_eq!(b.step(2.1, &fleet(leader, &one, &site)).avoid, None);
+    }
+
+    #[test]
+    fn a_follower_beside_the_rings_view_that_the_station_stops_the_leader_for_is_gone_round() {
+        let site = open();
+        let leader = body(0, 0.0, 0.0, 0.0, 0.0);
+        // 0.64 m off, 47° left of the leader's heading: out of its ring's view, but its
+        // footprint would touch the follower's within 0.3 m (seed 1755's jam).
+        let one = [body(1, 0.436, 0.468, 78.0, 0.0)];
+        assert!(!leader.sees(1.0, one[0].position));
+        let mut b = Blocking::default();
+        b.step(0.0, &fleet(leader, &one, &site));
+        let (at, _) = b
+            .step(2.0, &fleet(leader, &one, &site))
+            .avoid
+            .expect("held 2 s by the station's cap");
+        assert_eq!(at, one[0].position);
     }
 
     #[test]
