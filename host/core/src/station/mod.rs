@@ -582,6 +582,7 @@ impl BaseStation {
         let fleet = yielding::Fleet {
             leader: leader.pose,
             v: leader.v,
+            commanded: self.last_command.0,
             max_speed: self.cfg.planner.max_speed,
             hurry: self.cfg.follower_speed,
             max_accel: self.resume_accel(),

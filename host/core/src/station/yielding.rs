@@ -52,7 +52,11 @@
 //! up to `hurry`, not slowed for a shape change. A leader that went round someone
 //! standing in the street was crossing their way when they set off again, braked, and
 //! stood in it: they walked into it, where its pace would have taken it clear
-//! (`standing-person-oblivious-seed1806`, 2026-12-06).
+//! (`standing-person-oblivious-seed1806`, 2026-12-06). It hurries before no pace is safe
+//! where its pace would take it into such a mean way and hurrying clears it
+//! ([`Yielding::hurry_clears`]), and, once going on, keeps at it while that still clears
+//! them ([`Yielding::keep_clearing`]), judged with the commands already sent taking
+//! [`COMMAND_LAG_S`] to show (2026-12-07).
 
 use std::collections::HashMap;
 
@@ -113,6 +117,12 @@ const TOUCH_M: f64 = 0.15;
 /// touched it; breaking off at once, it stood in the way again
 /// (`crossing-oblivious-seed1812`, `standing-person-oblivious-seed1811`), m.
 const KEEP_CLEARING_M: f64 = 0.075;
+/// A command shows in the leader's speed about this late: the radio's 50 ms, up to a
+/// period before the robot's loop takes it, the motors' lag. Going on to clear someone's
+/// way is judged with it: judged from the speed now, the leader hurrying seemed to gain
+/// room it did not, and broke off in the walker's way (`movers-unmapped-seed2208`: the
+/// speed estimate rose 0.3 s behind the commands), s.
+const COMMAND_LAG_S: f64 = 0.3;
 /// Where it cannot keep clear of them either (a crowd all round), no faster than this.
 const SLOW_SHARE: f64 = 0.4;
 /// Speeding up again needs this much more room than keeping a pace, m.
@@ -145,6 +155,9 @@ pub struct Fleet<'a> {
     pub leader: PlanPose,
     /// The leader's speed now, m/s.
     pub v: f64,
+    /// The speed last commanded to the leader, m/s: its wheels reach it about
+    /// [`COMMAND_LAG_S`] on.
+    pub commanded: f64,
     pub max_speed: f64,
     /// How fast it may go to get out of the way of someone who would walk into it, m/s.
     pub hurry: f64,
@@ -298,6 +311,11 @@ impl Yielding {
         let standing = rollout(fleet, formation, movers, 0.0, &self.spec);
         // In a crowd, someone's way always crosses the fleet's within a few seconds.
         let lone = !self.in_crowd(now_s);
+        if self.clearing && lone {
+            if let Some(share) = self.keep_clearing(fleet, formation, movers, &standing) {
+                return (share, true);
+            }
+        }
         // The unsafe pace that keeps the most room, where nothing is safe.
         let mut going_on: Option<(f64, f64)> = None;
         // The shares come fastest first: the first one within its cap is the answer.
@@ -327,6 +345,12 @@ impl Yielding {
                 1.0
             };
             if share <= cap + 1e-9 {
+                let late = lone
+                    && room_of_wary(&gaps, wary) < TOUCH_M
+                    && room_of_wary(&standing, wary) < 0.0;
+                if late && self.hurry_clears(fleet, formation, movers) {
+                    return (fleet.hurry / fleet.max_speed, true);
+                }
                 return (share, false);
             }
         }
@@ -344,14 +368,57 @@ impl Yielding {
         } else {
             TOUCH_M
         };
-        if let Some((share, _)) = going_on.filter(|(_, kept)| *kept >= need) {
+        let spec = &self.spec;
+        if let Some((share, _)) =
+            going_on.filter(|(share, _)| clears(fleet, formation, movers, *share, spec) >= need)
+        {
             return (share, true);
         }
         let hurry = fleet.hurry / fleet.max_speed;
-        if hurry > 1.0 && room(&rollout(fleet, formation, movers, hurry, &self.spec)) >= need {
+        if hurry > 1.0 && clears(fleet, formation, movers, hurry, spec) >= need {
             return (hurry, true);
         }
         (0.0, false)
+    }
+
+    /// Going on to clear someone's way, the share it keeps going at: the one it went at
+    /// last period, else its pace, else hurrying, the first that keeps every mean way
+    /// [`KEEP_CLEARING_M`] off the robots; none once standing would leave nobody's way
+    /// through a robot (done) or none does (it breaks off). A pace merely no worse than
+    /// standing is not enough here: judged so, the leader dropped its hurry a period in,
+    /// went on at its pace into the walker's way, and was braking in it when they
+    /// reached it (`movers-unmapped-seed2163`, `2208`: contacts while moving).
+    fn keep_clearing(
+        &self,
+        fleet: &Fleet<'_>,
+        formation: &FormationManager,
+        movers: &[TrackView],
+        standing: &[Gaps],
+    ) -> Option<f64> {
+        if room(standing) >= 0.0 {
+            return None;
+        }
+        let hurry = (fleet.hurry / fleet.max_speed).max(1.0);
+        [self.last, 1.0, hurry]
+            .into_iter()
+            .filter(|share| *share > 0.0)
+            .find(|share| clears(fleet, formation, movers, *share, &self.spec) >= KEEP_CLEARING_M)
+    }
+
+    /// Whether hurrying keeps every mean way [`TOUCH_M`] off the robots. Away from a
+    /// crowd, where the pace it may take keeps someone it cannot count on within touch
+    /// of their way and standing would leave it through a robot, the leader hurries
+    /// across at once: waiting until no pace is safe, it drove at its pace into a
+    /// walker's way that hurrying would have kept 0.6 m clear, and was too late to
+    /// hurry then (`movers-unmapped-seed2208`: a contact while moving).
+    fn hurry_clears(
+        &self,
+        fleet: &Fleet<'_>,
+        formation: &FormationManager,
+        movers: &[TrackView],
+    ) -> bool {
+        let hurry = fleet.hurry / fleet.max_speed;
+        hurry > 1.0 && clears(fleet, formation, movers, hurry, &self.spec) >= TOUCH_M
     }
 
     /// Which movers the robots stop for when they are about to touch one, even if
@@ -437,6 +504,19 @@ fn rollout(
     share: f64,
     spec: &YieldingSpec,
 ) -> Vec<Gaps> {
+    rollout_from(fleet, formation, movers, share, spec, 0.0)
+}
+
+/// [`rollout`], the speed commanded last taking `lag_s` to show: until then the leader
+/// makes for that, not for `share`.
+fn rollout_from(
+    fleet: &Fleet<'_>,
+    formation: &FormationManager,
+    movers: &[TrackView],
+    share: f64,
+    spec: &YieldingSpec,
+    lag_s: f64,
+) -> Vec<Gaps> {
     let path = Path::new(fleet.ahead);
     // The line's last slot is at most this far back along the trail: the rest of it
     // (the whole way driven) need not be copied at every step.
@@ -458,7 +538,12 @@ fn rollout(
     let steps = (spec.horizon_s.max(CROSSING_S) / STEP_S).ceil() as usize;
     for k in 1..=steps {
         let t = k as f64 * STEP_S;
-        let dv = (target - v).clamp(-fleet.brake * STEP_S, fleet.max_accel * STEP_S);
+        let goal = if t <= lag_s + 1e-9 {
+            fleet.commanded
+        } else {
+            target
+        };
+        let dv = (goal - v).clamp(-fleet.brake * STEP_S, fleet.max_accel * STEP_S);
         s += (v + 0.5 * dv) * STEP_S;
         v += dv;
         let pose = path.pose_at(s, fleet.leader);
@@ -513,6 +598,25 @@ fn safe(g: &Gaps, s: &Gaps, wary: bool, lone: bool, extra: f64) -> bool {
     let stop_for = wary && g.imminent < TOUCH_M + extra;
     let late = lone && wary && g.crossing < TOUCH_M + extra && g.crossing < s.crossing - NO_WORSE_M;
     (!touch || (!worse && !stop_for)) && !late
+}
+
+/// The room going on at `share` leaves everyone's mean way ([`room`]), the commands
+/// already sent taking [`COMMAND_LAG_S`] to show.
+fn clears(
+    fleet: &Fleet<'_>,
+    formation: &FormationManager,
+    movers: &[TrackView],
+    share: f64,
+    spec: &YieldingSpec,
+) -> f64 {
+    room(&rollout_from(
+        fleet,
+        formation,
+        movers,
+        share,
+        spec,
+        COMMAND_LAG_S,
+    ))
 }
 
 /// The least room a pace leaves anyone on their mean way over [`CROSSING_S`], m
@@ -665,6 +769,7 @@ mod tests {
                 heading: 0.0,
             },
             v: 0.45,
+            commanded: 0.45,
             max_speed: 0.45,
             hurry: 0.8,
             max_accel: 0.3,
@@ -741,6 +846,20 @@ mod tests {
         let ahead = person(1, (0.3, -1.2), (0.0, 1.2));
         let mut y = Yielding::new(YieldingSpec::default());
         assert_eq!(decide(&mut y, 0.0, &[ahead]), 0.0);
+    }
+
+    #[test]
+    fn the_leader_hurries_across_the_way_of_a_stranger_it_would_drive_into_at_its_pace() {
+        // Seen 3.5 m to the right and 0.6 m on, walking across at 1.3 m/s: standing, their
+        // way runs through the leader; at its pace it drives into it; hurrying clears it
+        // (`movers-unmapped-seed2208`).
+        let hurry = 0.8 / 0.45;
+        let crossing = |dt: f64| person(1, (0.6, -3.5 + 1.3 * dt), (0.0, 1.3));
+        let mut y = Yielding::new(YieldingSpec::default());
+        assert_eq!(decide(&mut y, 0.0, &[crossing(0.0)]), hurry);
+        // Still hurrying a period on, once they are known as well.
+        assert_eq!(decide(&mut y, 0.1, &[crossing(0.1)]), hurry);
+        assert_eq!(decide(&mut y, 2.0, &[crossing(0.2)]), hurry);
     }
 
     #[test]
