@@ -178,6 +178,13 @@ pub struct Fleet<'a> {
     pub site: &'a Map,
 }
 
+impl Fleet<'_> {
+    /// Hurrying as a share of the planner's pace (over 1 where it is faster).
+    fn hurry_share(&self) -> f64 {
+        self.hurry / self.max_speed
+    }
+}
+
 /// The leader's pace among movers.
 #[derive(Debug, Clone)]
 pub struct Yielding {
@@ -348,8 +355,8 @@ impl Yielding {
                 let late = lone
                     && room_of_wary(&gaps, wary) < TOUCH_M
                     && room_of_wary(&standing, wary) < 0.0;
-                if late && self.hurry_clears(fleet, formation, movers) {
-                    return (fleet.hurry / fleet.max_speed, true);
+                if late && self.hurry_clears(fleet, formation, movers, TOUCH_M) {
+                    return (fleet.hurry_share(), true);
                 }
                 return (share, false);
             }
@@ -374,9 +381,8 @@ impl Yielding {
         {
             return (share, true);
         }
-        let hurry = fleet.hurry / fleet.max_speed;
-        if hurry > 1.0 && clears(fleet, formation, movers, hurry, spec) >= need {
-            return (hurry, true);
+        if self.hurry_clears(fleet, formation, movers, need) {
+            return (fleet.hurry_share(), true);
         }
         (0.0, false)
     }
@@ -398,27 +404,29 @@ impl Yielding {
         if room(standing) >= 0.0 {
             return None;
         }
-        let hurry = (fleet.hurry / fleet.max_speed).max(1.0);
+        let hurry = fleet.hurry_share().max(1.0);
         [self.last, 1.0, hurry]
             .into_iter()
             .filter(|share| *share > 0.0)
             .find(|share| clears(fleet, formation, movers, *share, &self.spec) >= KEEP_CLEARING_M)
     }
 
-    /// Whether hurrying keeps every mean way [`TOUCH_M`] off the robots. Away from a
-    /// crowd, where the pace it may take keeps someone it cannot count on within touch
-    /// of their way and standing would leave it through a robot, the leader hurries
-    /// across at once: waiting until no pace is safe, it drove at its pace into a
-    /// walker's way that hurrying would have kept 0.6 m clear, and was too late to
-    /// hurry then (`movers-unmapped-seed2208`: a contact while moving).
+    /// Whether hurrying is faster than its pace and keeps every mean way `need` off the
+    /// robots. Away from a crowd, where the pace it may take keeps someone it cannot
+    /// count on within touch of their way and standing would leave it through a robot,
+    /// the leader hurries across at once where this holds for [`TOUCH_M`]: waiting until
+    /// no pace is safe, it drove at its pace into a walker's way that hurrying would
+    /// have kept 0.6 m clear, and was too late to hurry then
+    /// (`movers-unmapped-seed2208`: a contact while moving).
     fn hurry_clears(
         &self,
         fleet: &Fleet<'_>,
         formation: &FormationManager,
         movers: &[TrackView],
+        need: f64,
     ) -> bool {
-        let hurry = fleet.hurry / fleet.max_speed;
-        hurry > 1.0 && clears(fleet, formation, movers, hurry, &self.spec) >= TOUCH_M
+        let hurry = fleet.hurry_share();
+        hurry > 1.0 && clears(fleet, formation, movers, hurry, &self.spec) >= need
     }
 
     /// Which movers the robots stop for when they are about to touch one, even if
