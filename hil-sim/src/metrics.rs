@@ -154,6 +154,8 @@ impl DrivenPath {
 #[derive(Debug, Clone)]
 pub struct Recorder {
     footprint: f64,
+    /// A robot's mass, kg (a contact's energy).
+    mass: f64,
     d: f64,
     r_det: f64,
     pub samples: Vec<Sample>,
@@ -171,21 +173,49 @@ pub struct Recorder {
 
 /// A robot moving slower than this stands, m/s.
 const STANDING: f64 = 0.05;
+/// A robot closing on a person faster than this (and faster than they close on it) drives
+/// into them: the standards' line between a vehicle striking someone and being struck, m/s.
+const DRIVING_INTO: f64 = 0.1;
 /// A moving robot within this of a person's footprint intrudes on their personal space, m.
 const INTRUSION_WITHIN: f64 = 0.5;
 /// The leader standing with a person within this of its footprint is freezing, m.
 const FREEZING_WITHIN: f64 = 1.5;
 
+/// A robot at one physics step, as the mover measures need it.
+#[derive(Debug, Clone, Copy)]
+pub struct RobotNow {
+    pub position: DVec2,
+    pub footprint: f64,
+    pub heading: f64,
+    /// Forward speed, m/s (negative backing).
+    pub v: f64,
+    pub leads: bool,
+}
+
+impl RobotNow {
+    fn velocity(&self) -> DVec2 {
+        DVec2::from_angle(self.heading) * self.v
+    }
+}
+
 /// What the robots did among the movers.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct MoverMeasures {
-    /// Contacts with a mover while the robot moved (the robot's doing: must be 0).
+    /// Contacts with a mover while the robot moved (faster than 0.05 m/s), whoever's doing.
     pub contacts_moving: u32,
     /// Contacts of a mover with a robot that stood (walked into).
     pub contacts_standing: u32,
+    /// Contacts by who did what ([`ContactClass`]).
+    pub drove_into: u32,
+    pub walked_into_standing: u32,
+    pub walked_into_braking: u32,
     /// The least gap between a robot's footprint and a person's (pedestrian or
-    /// cyclist), m; ∞ without persons.
+    /// cyclist), m, 0 at a contact; ∞ without persons.
     pub min_person_clearance_m: f64,
+    /// How deep a robot's footprint and a person's overlapped at worst, m (0: never).
+    pub deepest_person_overlap_m: f64,
+    /// The least gap between a robot's footprint and a vehicle's, m; ∞ without vehicles.
+    pub min_vehicle_clearance_m: f64,
     /// Time a moving robot was within 0.5 m of a person's footprint, s.
     pub intrusion_s: f64,
     /// The same, robot by robot (in the run's order); they overlap where two robots
@@ -203,6 +233,35 @@ pub struct MoverMeasures {
 /// Most mover contacts listed one by one.
 pub const MAX_CONTACTS_LISTED: usize = 100;
 
+/// Who did what at a contact, as the safety standards judge it (ISO 3691-4: a driverless
+/// vehicle must not strike a person; passive safety: be at rest, or not closing, when a
+/// contact happens).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactClass {
+    /// The robot's own velocity toward the mover was over 0.1 m/s and larger than the
+    /// mover's toward the robot.
+    DroveInto,
+    /// The robot stood (0.05 m/s or slower).
+    WalkedIntoStanding,
+    /// The robot moved, but the closing was the mover's doing.
+    WalkedIntoBraking,
+}
+
+impl ContactClass {
+    /// `robot_toward`, `mover_toward`: each one's velocity along the line between them,
+    /// toward the other, m/s; `speed`: the robot's speed, m/s.
+    pub fn of(robot_toward: f64, mover_toward: f64, speed: f64) -> Self {
+        if robot_toward > DRIVING_INTO && robot_toward > mover_toward {
+            ContactClass::DroveInto
+        } else if speed <= STANDING {
+            ContactClass::WalkedIntoStanding
+        } else {
+            ContactClass::WalkedIntoBraking
+        }
+    }
+}
+
 /// One contact of a robot with a mover.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MoverContact {
@@ -214,36 +273,47 @@ pub struct MoverContact {
     pub kind: MoverKind,
     /// Whether the robot moved (faster than 0.05 m/s).
     pub robot_moving: bool,
+    pub class: ContactClass,
+    /// The robot's speed, m/s.
+    pub robot_speed_mps: f64,
+    /// How fast the two closed on each other, m/s.
+    pub closing_speed_mps: f64,
+    /// The robot's kinetic energy, ½·`[robot] mass_kg`·speed², J.
+    pub robot_energy_j: f64,
 }
 
 impl MoverMeasures {
     fn new() -> Self {
         Self {
             min_person_clearance_m: f64::INFINITY,
+            min_vehicle_clearance_m: f64::INFINITY,
             ..Self::default()
         }
     }
 
-    /// One physics step of `dt`: `robots` as (position, footprint, speed, leads).
+    /// One physics step of `dt`; `mass`: a robot's, kg.
     fn observe(
         &mut self,
         t_s: f64,
-        robots: &[(DVec2, f64, f64, bool)],
+        robots: &[RobotNow],
         movers: &[MoverState],
         dt: f64,
+        mass: f64,
     ) {
         let (mut intruding, mut freezing) = (false, false);
         self.intrusion_by_robot_s.resize(robots.len(), 0.0);
-        for (i, (p, fp, v, leads)) in robots.iter().enumerate() {
-            let moving = v.abs() > STANDING;
+        for (i, r) in robots.iter().enumerate() {
+            let moving = r.v.abs() > STANDING;
             let mut intrudes = false;
             for m in movers {
-                let gap = m.distance(*p) - fp;
-                let person = m.kind != MoverKind::Vehicle;
-                if person {
-                    self.min_person_clearance_m = self.min_person_clearance_m.min(gap);
+                let gap = m.distance(r.position) - r.footprint;
+                if m.kind == MoverKind::Vehicle {
+                    self.min_vehicle_clearance_m = self.min_vehicle_clearance_m.min(gap.max(0.0));
+                } else {
+                    self.min_person_clearance_m = self.min_person_clearance_m.min(gap.max(0.0));
+                    self.deepest_person_overlap_m = self.deepest_person_overlap_m.max(-gap);
                     intrudes |= moving && gap < INTRUSION_WITHIN;
-                    freezing |= *leads && !moving && gap < FREEZING_WITHIN;
+                    freezing |= r.leads && !moving && gap < FREEZING_WITHIN;
                 }
                 let pair = (i, m.index);
                 if gap >= 0.0 {
@@ -252,20 +322,7 @@ impl MoverMeasures {
                         self.touching.remove(&pair);
                     }
                 } else if self.touching.insert(pair) {
-                    if moving {
-                        self.contacts_moving += 1;
-                    } else {
-                        self.contacts_standing += 1;
-                    }
-                    if self.contacts.len() < MAX_CONTACTS_LISTED {
-                        self.contacts.push(MoverContact {
-                            at_s: t_s,
-                            robot: i,
-                            mover: m.index,
-                            kind: m.kind,
-                            robot_moving: moving,
-                        });
-                    }
+                    self.count(contact(t_s, i, r, m, mass));
                 }
             }
             if intrudes {
@@ -275,6 +332,43 @@ impl MoverMeasures {
         }
         self.intrusion_s += if intruding { dt } else { 0.0 };
         self.freezing_s += if freezing { dt } else { 0.0 };
+    }
+
+    /// A new contact, counted and listed.
+    fn count(&mut self, c: MoverContact) {
+        if c.robot_moving {
+            self.contacts_moving += 1;
+        } else {
+            self.contacts_standing += 1;
+        }
+        match c.class {
+            ContactClass::DroveInto => self.drove_into += 1,
+            ContactClass::WalkedIntoStanding => self.walked_into_standing += 1,
+            ContactClass::WalkedIntoBraking => self.walked_into_braking += 1,
+        }
+        if self.contacts.len() < MAX_CONTACTS_LISTED {
+            self.contacts.push(c);
+        }
+    }
+}
+
+/// Robot `i` (`r`) and mover `m` at the instant they touch, judged.
+fn contact(t_s: f64, i: usize, r: &RobotNow, m: &MoverState, mass: f64) -> MoverContact {
+    let towards = m.toward_from(r.position);
+    let (own, theirs) = (r.velocity(), m.velocity);
+    let robot_toward = own.dot(towards);
+    let mover_toward = -theirs.dot(towards);
+    let speed = r.v.abs();
+    MoverContact {
+        at_s: t_s,
+        robot: i,
+        mover: m.index,
+        kind: m.kind,
+        robot_moving: speed > STANDING,
+        class: ContactClass::of(robot_toward, mover_toward, speed),
+        robot_speed_mps: speed,
+        closing_speed_mps: (robot_toward + mover_toward).max(0.0),
+        robot_energy_j: 0.5 * mass * speed * speed,
     }
 }
 
@@ -297,6 +391,7 @@ impl Recorder {
     pub fn new(s: &Scenario) -> Self {
         Self {
             footprint: s.robot.footprint_radius,
+            mass: s.robot.mass_kg,
             d: s.follower.d,
             r_det: s.planner.r_det,
             samples: Vec::new(),
@@ -335,15 +430,21 @@ impl Recorder {
             .map_or(0.0, |l| t_us.saturating_sub(l) as f64 / 1e6);
         self.last_us = Some(t_us);
         if !movers.is_empty() {
-            let bodies: Vec<(DVec2, f64, f64, bool)> = robots
+            let bodies: Vec<RobotNow> = robots
                 .iter()
                 .map(|r| {
                     let b = r.body();
-                    let leads = r.role() == Role::Leader;
-                    (DVec2::new(b.x, b.y), self.footprint, b.twist().0, leads)
+                    RobotNow {
+                        position: DVec2::new(b.x, b.y),
+                        footprint: self.footprint,
+                        heading: b.heading,
+                        v: b.twist().0,
+                        leads: r.role() == Role::Leader,
+                    }
                 })
                 .collect();
-            self.movers.observe(t_us as f64 / 1e6, &bodies, movers, dt);
+            let t_s = t_us as f64 / 1e6;
+            self.movers.observe(t_s, &bodies, movers, dt, self.mass);
         }
         let fp = self.footprint;
         let reach = self.r_det + fp;
@@ -464,22 +565,84 @@ mod tests {
         }
     }
 
+    fn robot(x: f64, y: f64, heading_deg: f64, v: f64, leads: bool) -> RobotNow {
+        RobotNow {
+            position: DVec2::new(x, y),
+            footprint: 0.3,
+            heading: heading_deg.to_radians(),
+            v,
+            leads,
+        }
+    }
+
+    /// A contact is the robot's doing where it closes faster than 0.1 m/s and faster than
+    /// the person; else they walked into it, standing or moving; its energy from its mass.
+    #[test]
+    fn contacts_are_judged_by_who_closed_on_whom() {
+        let fp = 0.3;
+        // A person 0.5 m ahead (touching: 0.25 + 0.3 > 0.5), walking across at 1 m/s.
+        let crossing = [person(0, 0.5, 0.0)];
+        let cases = [
+            // Driving at them at 0.5 m/s: the robot's doing.
+            (robot(0.0, 0.0, 0.0, 0.5, false), ContactClass::DroveInto),
+            // Standing: walked into.
+            (
+                robot(0.0, 0.0, 0.0, 0.0, false),
+                ContactClass::WalkedIntoStanding,
+            ),
+            // Creeping at 0.08 m/s: moving, but not driving into them.
+            (
+                robot(0.0, 0.0, 0.0, 0.08, false),
+                ContactClass::WalkedIntoBraking,
+            ),
+            // Driving away from them at 0.5 m/s (they are behind it).
+            (
+                robot(0.0, 0.0, 180.0, 0.5, false),
+                ContactClass::WalkedIntoBraking,
+            ),
+        ];
+        for (r, class) in cases {
+            let mut m = MoverMeasures::new();
+            m.observe(0.0, &[r], &crossing, 0.01, 60.0);
+            assert_eq!(m.contacts.len(), 1);
+            let c = &m.contacts[0];
+            assert_eq!(c.class, class, "{r:?}");
+            assert!((c.robot_energy_j - 30.0 * r.v * r.v).abs() < 1e-9);
+        }
+        // A person walking at the robot faster than it drives at them: walked into.
+        let mut at_it = person(0, 0.5, 0.0);
+        at_it.velocity = DVec2::new(-1.3, 0.0);
+        let mut m = MoverMeasures::new();
+        m.observe(
+            0.0,
+            &[robot(0.0, 0.0, 0.0, 0.5, false)],
+            &[at_it],
+            0.01,
+            60.0,
+        );
+        let c = &m.contacts[0];
+        assert_eq!(c.class, ContactClass::WalkedIntoBraking);
+        assert!((c.closing_speed_mps - 1.8).abs() < 1e-9);
+        assert_eq!((m.drove_into, m.walked_into_braking), (0, 1));
+        assert_eq!(m.min_person_clearance_m, 0.0);
+        assert!((m.deepest_person_overlap_m - (0.25 + fp - 0.5)).abs() < 1e-9);
+    }
+
     /// Intrusion is counted once for the fleet and robot by robot; a standing robot
     /// does not intrude.
     #[test]
     fn intrusion_is_counted_for_the_fleet_and_robot_by_robot() {
         let mut m = MoverMeasures::new();
-        let fp = 0.3;
         // Robot 0 moves with a person 0.3 m off its footprint; robot 1 moves far from
         // anyone; robot 2 stands with a person 0.1 m off.
         let robots = [
-            (DVec2::new(0.0, 0.0), fp, 0.3, true),
-            (DVec2::new(10.0, 0.0), fp, 0.3, false),
-            (DVec2::new(0.0, 5.0), fp, 0.0, false),
+            robot(0.0, 0.0, 0.0, 0.3, true),
+            robot(10.0, 0.0, 0.0, 0.3, false),
+            robot(0.0, 5.0, 0.0, 0.0, false),
         ];
         let movers = [person(0, 0.85, 0.0), person(1, 0.0, 5.65)];
         for k in 0..10 {
-            m.observe(k as f64 * 0.1, &robots, &movers, 0.1);
+            m.observe(k as f64 * 0.1, &robots, &movers, 0.1, 60.0);
         }
         assert!((m.intrusion_s - 1.0).abs() < 1e-9);
         assert_eq!(m.intrusion_by_robot_s.len(), 3);
@@ -487,9 +650,16 @@ mod tests {
         assert_eq!(m.intrusion_by_robot_s[1], 0.0);
         assert_eq!(m.intrusion_by_robot_s[2], 0.0);
         // Now robot 2 moves as well: the fleet's time counts once, each robot's its own.
-        let both = [robots[0], robots[1], (robots[2].0, fp, 0.2, false)];
+        let both = [
+            robots[0],
+            robots[1],
+            RobotNow {
+                v: 0.2,
+                ..robots[2]
+            },
+        ];
         for k in 0..5 {
-            m.observe(1.0 + k as f64 * 0.1, &both, &movers, 0.1);
+            m.observe(1.0 + k as f64 * 0.1, &both, &movers, 0.1, 60.0);
         }
         assert!((m.intrusion_s - 1.5).abs() < 1e-9);
         assert!((m.intrusion_by_robot_s[0] - 1.5).abs() < 1e-9);

@@ -86,6 +86,27 @@ impl MoverState {
         }
     }
 
+    /// The unit vector from `p` toward the nearest point of its footprint (toward its
+    /// centre where `p` is inside it or on the centre).
+    pub fn toward_from(&self, p: DVec2) -> DVec2 {
+        let nearest = match self.shape {
+            MoverShape::Circle { .. } => self.position,
+            MoverShape::Rectangle { length, width } => {
+                let turn = DVec2::from_angle(-self.heading);
+                let local = (p - self.position).rotate(turn);
+                let half = DVec2::new(0.5 * length, 0.5 * width);
+                let inside = local.abs().cmplt(half).all();
+                let clamped = if inside {
+                    DVec2::ZERO
+                } else {
+                    local.clamp(-half, half)
+                };
+                self.position + clamped.rotate(DVec2::from_angle(self.heading))
+            }
+        };
+        (nearest - p).try_normalize().unwrap_or(DVec2::X)
+    }
+
     /// Distance along the unit ray from `o` in `dir` to its footprint, if it hits.
     pub fn ray(&self, o: DVec2, dir: DVec2) -> Option<f64> {
         match self.shape {

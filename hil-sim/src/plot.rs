@@ -143,10 +143,11 @@ where
     // The movers' line under the title: on one line the two outran the panel.
     let movers = (report.movers.count > 0).then(|| {
         format!(
-            "{} movers: contacts {} moving, {} standing; least person clearance {}",
+            "{} movers: drove into {}, walked into {} standing, {} braking; least person clearance {}",
             report.movers.count,
-            report.movers.contacts_moving,
-            report.movers.contacts_standing,
+            report.movers.drove_into,
+            report.movers.walked_into_standing,
+            report.movers.walked_into_braking,
             report
                 .movers
                 .min_person_clearance_m

@@ -1,7 +1,12 @@
 //! The run's report: a public interface. `schema_version` 2 keeps every schema-1 key and
 //! adds per-follower join times, percentiles and transformation errors, and a reason per
 //! transformation; 3 adds what the robots did among the movers (`movers`). Every key is
-//! documented in `docs/sim.md`.
+//! documented in `docs/sim.md`. 4 judges each mover contact as the safety standards do
+//! (`movers.drove_into`, `walked_into_standing`, `walked_into_braking`, and per contact the
+//! robot's speed, the closing speed and the robot's energy), floors
+//! `min_person_clearance_m` at 0 (the overlap is `deepest_person_overlap_m`), adds
+//! `min_vehicle_clearance_m`, and leaves the tracking errors null where nothing was
+//! detected.
 
 use std::collections::BTreeMap;
 
@@ -13,7 +18,7 @@ use serde::Serialize;
 
 use crate::metrics::{Recorder, Sample, SAMPLE_PERIOD_US};
 
-pub const SCHEMA_VERSION: u32 = 3;
+pub const SCHEMA_VERSION: u32 = 4;
 
 /// A follower has joined at its first sample under this error, m.
 pub const JOINED_BELOW_M: f64 = 0.1;
@@ -96,6 +101,10 @@ pub struct Report {
     /// nothing but its scenario and seed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub started_unix_ms: Option<u64>,
+    /// A baseline run (`sim --baseline`): `parked` or `ignore_movers`; absent from a run
+    /// with the station's manners (schema 4).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub baseline: Option<String>,
     pub goal_reached: bool,
     pub time_to_goal_s: Option<f64>,
     pub collisions: u32,
@@ -119,13 +128,27 @@ pub struct Report {
 pub struct MoversReport {
     /// Movers on the site over the run (crowds' persons included).
     pub count: usize,
-    /// Contacts with a mover while the robot moved: the robot's doing.
+    /// Contacts with a mover while the robot moved (faster than 0.05 m/s), whoever's
+    /// doing: `drove_into` + `walked_into_braking`.
     pub contacts_moving: u32,
-    /// Contacts of a mover with a robot that stood: walked into.
+    /// Contacts of a mover with a robot that stood: `walked_into_standing`.
     pub contacts_standing: u32,
+    /// Contacts where the robot's velocity toward the mover was over 0.1 m/s and larger
+    /// than the mover's toward the robot: the robot struck them (schema 4).
+    pub drove_into: u32,
+    /// Contacts where the mover walked (rode, drove) into a robot standing, and into one
+    /// still moving but not closing as fast as they did (schema 4).
+    pub walked_into_standing: u32,
+    pub walked_into_braking: u32,
     /// The least gap between a robot's footprint and a person's (pedestrian or cyclist),
-    /// m; null without persons.
+    /// m, 0 at a contact; null without persons.
     pub min_person_clearance_m: Option<f64>,
+    /// How deep a robot's footprint and a person's overlapped at worst, m; null without
+    /// persons (schema 4).
+    pub deepest_person_overlap_m: Option<f64>,
+    /// The least gap between a robot's footprint and a vehicle's, m, 0 at a contact;
+    /// null without vehicles (schema 4).
+    pub min_vehicle_clearance_m: Option<f64>,
     /// Time a moving robot was within 0.5 m of a person's footprint, s.
     pub intrusion_s: f64,
     /// The same, robot by robot (the run's order, as in `contacts[].robot`), s.
@@ -147,16 +170,23 @@ pub struct MoversReport {
 pub struct TrackingReport {
     /// Mover-samples within reach, moving faster than 0.3 m/s.
     pub moving_samples: u64,
-    /// Share of those with a moving track within 1 m of its footprint.
-    pub detected_fraction: f64,
+    /// Share of those with a moving track within 1 m of its footprint (null: none in
+    /// reach).
+    pub detected_fraction: Option<f64>,
     /// Over the detected: mean distance from the track to the mover's centre, m, and
-    /// mean velocity error, m/s.
-    pub mean_position_error_m: f64,
-    pub mean_velocity_error_mps: f64,
-    /// Share of the detected whose velocity error is within two of the track's sigmas.
-    pub velocity_within_2_sigma_fraction: f64,
-    /// Moving tracks with no mover within 1 m of them, per moving track-sample.
-    pub false_moving_fraction: f64,
+    /// mean velocity error, m/s (null: none detected).
+    pub mean_position_error_m: Option<f64>,
+    pub mean_velocity_error_mps: Option<f64>,
+    /// Share of the detected whose velocity error is within two of the track's sigmas
+    /// (null: none detected).
+    pub velocity_within_2_sigma_fraction: Option<f64>,
+    /// Moving tracks with no mover within 1 m of them, per moving track-sample (null: no
+    /// moving track).
+    pub false_moving_fraction: Option<f64>,
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
 }
 
 /// Within this of the leader a mover is in the scanner's reach, m.
@@ -198,7 +228,7 @@ impl TrackingReport {
                 false_moving += s.movers.iter().all(|m| m.distance(t.position) > 1.0) as u64;
             }
         }
-        let per = |a: f64, b: u64| if b > 0 { a / b as f64 } else { 0.0 };
+        let per = |a: f64, b: u64| (b > 0).then(|| a / b as f64);
         (n > 0 || tracks > 0).then(|| Self {
             moving_samples: n,
             detected_fraction: per(found as f64, n),
@@ -219,16 +249,31 @@ impl MoversReport {
             count,
             contacts_moving: m.contacts_moving,
             contacts_standing: m.contacts_standing,
-            min_person_clearance_m: m
-                .min_person_clearance_m
-                .is_finite()
-                .then_some(m.min_person_clearance_m),
+            drove_into: m.drove_into,
+            walked_into_standing: m.walked_into_standing,
+            walked_into_braking: m.walked_into_braking,
+            min_person_clearance_m: finite(m.min_person_clearance_m),
+            deepest_person_overlap_m: finite(m.min_person_clearance_m)
+                .map(|_| m.deepest_person_overlap_m),
+            min_vehicle_clearance_m: finite(m.min_vehicle_clearance_m),
             intrusion_s: m.intrusion_s,
             intrusion_by_robot_s: m.intrusion_by_robot_s.clone(),
             freezing_s: m.freezing_s,
             time_to_goal_empty_s: None,
             contacts: m.contacts.clone(),
             tracking: None,
+        }
+    }
+
+    /// Contacts per robot-hour over a run of `sim_time_s` with `robots` robots: what a
+    /// parked fleet's rate is held against.
+    pub fn contacts_per_robot_hour(&self, robots: usize, sim_time_s: f64) -> f64 {
+        let hours = robots as f64 * sim_time_s / 3600.0;
+        let n = self.drove_into + self.walked_into_standing + self.walked_into_braking;
+        if hours > 0.0 {
+            n as f64 / hours
+        } else {
+            0.0
         }
     }
 
@@ -426,6 +471,7 @@ pub fn build_report(
         sim_time_s: facts.sim_time_s,
         wall_time_s: facts.wall_time_s,
         started_unix_ms: None,
+        baseline: None,
         goal_reached: facts.time_to_goal_s.is_some(),
         time_to_goal_s: facts.time_to_goal_s,
         collisions: rec.contacts + rec.movers.contacts_moving + rec.movers.contacts_standing,

@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use base_station::scenario::Scenario;
+use base_station::station::MoverPolicy;
 use protocol::{Reject, RejectCounts};
 
 use crate::brain::BrainError;
@@ -30,12 +31,14 @@ pub fn simulate_with(
 
 /// The time to goal of `scenario` with nobody on the site (its movers and crowds taken
 /// away), run as `options` say but at full speed and with a simulated base station: the
-/// report's `movers.time_to_goal_empty_s`. `None` without movers, or short of the goal.
+/// report's `movers.time_to_goal_empty_s`. `None` without movers, or short of the goal
+/// (a parked fleet never leaves).
 pub fn empty_site_time(
     scenario: &Scenario,
     options: &SimOptions,
 ) -> Result<Option<f64>, BrainError> {
-    if scenario.movers.is_empty() && scenario.crowds.is_empty() {
+    let parked = options.movers == MoverPolicy::Parked;
+    if parked || scenario.movers.is_empty() && scenario.crowds.is_empty() {
         return Ok(None);
     }
     let mut empty = scenario.clone();
@@ -45,6 +48,7 @@ pub fn empty_site_time(
     quick.firmware = options.firmware;
     quick.key = options.key.clone();
     quick.fixes = options.fixes;
+    quick.movers = options.movers;
     let (report, _) = simulate(empty, quick)?;
     Ok(report.time_to_goal_s)
 }
@@ -87,6 +91,11 @@ pub fn report_of(world: &World, wall_time_s: f64) -> Report {
         movers: world.movers.len(),
     };
     let mut report = report::build_report(&world.recorder, &facts, transformations, link);
+    report.baseline = match world.options.movers {
+        MoverPolicy::Heed => None,
+        MoverPolicy::Ignore => Some("ignore_movers".to_string()),
+        MoverPolicy::Parked => Some("parked".to_string()),
+    };
     if world.external.is_some() {
         return report;
     }

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use base_station::geometry::Obstacle;
 use base_station::map::Map;
 use base_station::scenario::{Role, Scenario};
-use base_station::station::{nonce_base, BaseStation, StationConfig};
+use base_station::station::{nonce_base, BaseStation, MoverPolicy, StationConfig};
 use control_core::config::{self, RobotConfig};
 use control_core::controller::{MotorOutput, Sensors};
 use control_core::node::Identity;
@@ -83,6 +83,8 @@ pub struct SimOptions {
     pub settle_s: f64,
     /// A firmware brain that takes longer than this (wall clock) for a step has hung.
     pub step_timeout: std::time::Duration,
+    /// How the simulated base station treats what moves (a baseline, or its manners).
+    pub movers: MoverPolicy,
 }
 
 impl SimOptions {
@@ -96,6 +98,7 @@ impl SimOptions {
             key: None,
             settle_s: 5.0,
             step_timeout: crate::qemu::STEP_TIMEOUT,
+            movers: MoverPolicy::Heed,
         }
     }
 }
@@ -106,6 +109,14 @@ impl SimOptions {
         self.key
             .clone()
             .unwrap_or_else(|| std::sync::Arc::new(sim_key(self.seed)))
+    }
+}
+
+/// The simulated station's configuration: the scenario's, treating movers as asked.
+fn station_config(scenario: &Scenario, options: &SimOptions) -> StationConfig {
+    StationConfig {
+        movers: options.movers,
+        ..StationConfig::from_scenario(scenario)
     }
 }
 
@@ -261,7 +272,7 @@ impl World {
         let mut master = ChaCha8Rng::seed_from_u64(options.seed);
         let key = options.fleet_key();
         let station = BaseStation::new(
-            StationConfig::from_scenario(&scenario),
+            station_config(&scenario, &options),
             &key,
             master.random(),
             nonce_base(SIM_EPOCH_MS, master.random()),
@@ -447,7 +458,7 @@ impl World {
                     tracing::info!("fault: the base station restarts");
                     let mut rng = ChaCha8Rng::seed_from_u64(self.options.seed ^ self.t_us);
                     self.station = BaseStation::new(
-                        StationConfig::from_scenario(&self.scenario),
+                        station_config(&self.scenario, &self.options),
                         &self.options.fleet_key(),
                         rng.random(),
                         nonce_base(SIM_EPOCH_MS + self.t_us / 1000, rng.random()),

@@ -46,6 +46,28 @@ pub struct SimArgs {
     /// `--fault '{ at_s = 30, kind = "loss_burst", duration_s = 10 }'`. Repeatable.
     #[arg(long = "fault", value_name = "TABLE")]
     pub faults: Vec<String>,
+    /// Run a baseline to measure the station's manners against, in the same world:
+    /// `parked` (the fleet assembles and stands for the whole run) or `ignore-movers`
+    /// (the station does not act on what moves; the robots' own stops still do). The
+    /// report says so (`baseline`).
+    #[arg(long, value_enum)]
+    pub baseline: Option<Baseline>,
+}
+
+/// `sim --baseline`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Baseline {
+    Parked,
+    IgnoreMovers,
+}
+
+impl From<Baseline> for base_station::station::MoverPolicy {
+    fn from(b: Baseline) -> Self {
+        match b {
+            Baseline::Parked => Self::Parked,
+            Baseline::IgnoreMovers => Self::Ignore,
+        }
+    }
 }
 
 fn parse_fault(text: &str) -> anyhow::Result<base_station::scenario::FaultSpec> {
@@ -82,6 +104,9 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
     options.firmware = args.robots.firmware.into();
     options.realtime = args.realtime;
+    if let Some(b) = args.baseline {
+        options.movers = b.into();
+    }
     // Simulated time on a terminal (stderr); nothing when stderr is not one (CI, pipes).
     let bar = indicatif::ProgressBar::new(1000);
     bar.set_style(
@@ -332,10 +357,11 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Pat
     let m = &r.movers;
     if m.count > 0 {
         outln!(
-            "movers {} · contacts {} moving, {} standing · least person clearance {} m · intrusion {:.1} s · freezing {:.1} s · time to goal {} × the empty site's",
+            "movers {} · contacts: drove into {}, walked into {} standing, {} braking · least person clearance {} m · intrusion {:.1} s · freezing {:.1} s · time to goal {} × the empty site's",
             m.count,
-            m.contacts_moving,
-            m.contacts_standing,
+            m.drove_into,
+            m.walked_into_standing,
+            m.walked_into_braking,
             num(m.min_person_clearance_m),
             m.intrusion_s,
             m.freezing_s,

@@ -1,7 +1,8 @@
 //! Shared helpers: shipped scenarios, runs, and the bounds the issues set.
 #![allow(dead_code)]
 
-pub mod generate;
+#[allow(unused_imports)]
+pub use e2e::generate;
 
 use base_station::scenario::Scenario;
 use hil_sim::report::{Report, RobotReport};

@@ -355,6 +355,8 @@ pub struct RobotSpec {
     pub motor_time_constant_s: f64,
     pub motor_no_load_speed: f64,
     pub motor_dead_band: f64,
+    /// Mass with brushes, bin and battery, kg: a contact's energy in the report.
+    pub mass_kg: f64,
 }
 
 impl Default for RobotSpec {
@@ -373,6 +375,8 @@ impl Default for RobotSpec {
             motor_time_constant_s: 0.1,
             motor_no_load_speed: 1.2,
             motor_dead_band: 0.03,
+            // A 0.6 m wide sweeper with its brushes, a 40 l bin and a battery.
+            mass_kg: 60.0,
         }
     }
 }

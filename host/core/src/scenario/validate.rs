@@ -238,6 +238,7 @@ impl Scenario {
         p.positive("robot.brake_decel", r.brake_decel);
         p.positive("robot.motor_time_constant_s", r.motor_time_constant_s);
         p.positive("robot.motor_no_load_speed", r.motor_no_load_speed);
+        p.positive("robot.mass_kg", r.mass_kg);
         p.finite("robot.max_reverse_speed", &[r.max_reverse_speed]);
         if r.ticks_per_rev == 0 {
             p.fail("robot.ticks_per_rev", "must be > 0");

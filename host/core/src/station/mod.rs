@@ -113,6 +113,22 @@ pub struct StationConfig {
     /// The robots' control configuration (limits, the L-φ law's gains), as their firmware
     /// has it.
     pub robot: control_core::RobotConfig,
+    /// How the station treats what moves: as it should, or a baseline to measure that by.
+    pub movers: MoverPolicy,
+}
+
+/// How the station treats what moves. Only `Heed` drives a fleet; the other two are the
+/// baselines its manners are measured against, in the same worlds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum MoverPolicy {
+    /// Yield, step aside, keep clear: the station's manners.
+    #[default]
+    Heed,
+    /// Moving tracks are not acted on (what stands still is still avoided); the robots'
+    /// own rings and time-to-collision stop still act.
+    Ignore,
+    /// The fleet assembles, then stands where it is for the whole run.
+    Parked,
 }
 
 impl StationConfig {
@@ -138,6 +154,7 @@ impl StationConfig {
             reverse_speed: 0.8 * s.robot.max_reverse_speed,
             control_offset: s.follower.d,
             robot: s.robot_config(),
+            movers: MoverPolicy::Heed,
         }
     }
 }
@@ -376,7 +393,10 @@ impl BaseStation {
         let statuses = self
             .fleet
             .follower_statuses(now_ms, |id| self.detours.is_active(id));
-        let movers: Vec<TrackView> = self.tracker.moving(now_ms).collect();
+        let movers: Vec<TrackView> = match self.cfg.movers {
+            MoverPolicy::Heed => self.tracker.moving(now_ms).collect(),
+            MoverPolicy::Ignore | MoverPolicy::Parked => Vec::new(),
+        };
         let crowded = self.yielding.crowded(now_s, leader.pose.position, &movers);
         self.guidance.set_crowded(crowded);
         let look = self.guidance.look(now_s, &leader, &statuses, &self.world);
@@ -393,7 +413,7 @@ impl BaseStation {
         let following = self.fleet.following(&bodies, now_ms);
         let robots = (&bodies[..], &following[..]);
         self.send_detours(leader.pose, &look.behind, &movers, robots, now_ms);
-        if !self.fleet_ready(now_ms) {
+        if !self.fleet_ready(now_ms) || self.cfg.movers == MoverPolicy::Parked {
             // Leave only with the whole fleet: until then the leader holds.
             self.last_command = (0.0, 0.0);
             let hold = Message::VelocityCommand(VelocityCommand {
