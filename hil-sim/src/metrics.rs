@@ -11,7 +11,7 @@
 use rustc_hash::FxHashSet;
 
 use base_station::formation::{back_along, Target};
-use base_station::map::Map;
+use base_station::geometry::map::Map;
 use base_station::scenario::{Role, Scenario};
 use base_station::station::BaseStation;
 use glam::DVec2;
@@ -20,8 +20,8 @@ use serde::Serialize;
 
 use crate::movers::MoverState;
 use crate::plant::Body;
+use base_station::perception::tracking::TrackView;
 use base_station::scenario::movers::MoverKind;
-use base_station::tracking::TrackView;
 
 /// Samples for the figure, the trace and the report: 10 Hz.
 pub const SAMPLE_PERIOD_US: u64 = 100_000;

@@ -11,8 +11,9 @@
 //!   what lies behind it pushes it less (`LAMBDA`). People's neighbours are looked up in
 //!   a grid of `CELL` cells, so a plaza of hundreds costs what their neighbourhoods do.
 
-use base_station::cells::{cell_of, CellIndex};
-use base_station::map::Map;
+use base_station::geometry;
+use base_station::geometry::cells::{cell_of, CellIndex};
+use base_station::geometry::map::Map;
 use base_station::scenario::movers::{
     Behavior, CrowdSpec, MoverKind, MoverShape, MoverSpec, Repeat,
 };
@@ -110,7 +111,7 @@ impl MoverState {
     /// Distance along the unit ray from `o` in `dir` to its footprint, if it hits.
     pub fn ray(&self, o: DVec2, dir: DVec2) -> Option<f64> {
         match self.shape {
-            MoverShape::Circle { radius } => crate::ring::ray_circle(o, dir, self.position, radius),
+            MoverShape::Circle { radius } => geometry::ray_circle(o, dir, self.position, radius),
             MoverShape::Rectangle { length, width } => {
                 let turn = DVec2::from_angle(-self.heading);
                 let (lo, ld) = ((o - self.position).rotate(turn), dir.rotate(turn));
@@ -515,7 +516,7 @@ fn heading_round(at: DVec2, reach: f64, goal: DVec2, robots: &[RobotBody]) -> DV
                 if inside {
                     ((*p - at).dot(dir) > 0.0).then_some(0.0)
                 } else {
-                    crate::ring::ray_circle(at, dir, *p, *r)
+                    geometry::ray_circle(at, dir, *p, *r)
                 }
             })
             .fold(look, f64::min)

@@ -8,8 +8,8 @@ use base_station::scenario::Role;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
+use base_station::perception::tracking::Motion;
 use base_station::scenario::movers::MoverShape;
-use base_station::tracking::Motion;
 use glam::DVec2;
 
 use crate::movers::MoverState;

@@ -202,7 +202,7 @@ impl TrackingReport {
             let moving: Vec<_> = s
                 .tracks
                 .iter()
-                .filter(|t| t.motion == base_station::tracking::Motion::Moving)
+                .filter(|t| t.motion == base_station::perception::tracking::Motion::Moving)
                 .collect();
             for m in s
                 .movers

@@ -4,8 +4,9 @@
 //! other robots. Beside the leader's scanner ([`crate::scanner`]), the other sensor that
 //! sees the world.
 
-use base_station::cells::CellIndex;
-use base_station::map::Map;
+use base_station::geometry;
+use base_station::geometry::cells::CellIndex;
+use base_station::geometry::map::Map;
 use glam::DVec2;
 
 use crate::movers::MoverState;
@@ -30,18 +31,6 @@ pub fn free_ahead(echo: f64, beam: f64, fp: f64) -> Option<f64> {
     let (ahead, aside) = (echo * beam.cos(), echo * beam.sin().abs());
     let corridor = fp + SIDE_MARGIN;
     (aside < corridor).then(|| ahead - (corridor * corridor - aside * aside).sqrt() + SIDE_MARGIN)
-}
-
-/// Distance along the unit ray to a circle, if it hits.
-pub fn ray_circle(o: DVec2, dir: DVec2, c: DVec2, r: f64) -> Option<f64> {
-    let oc = o - c;
-    let b = oc.dot(dir);
-    let disc = b * b - (oc.length_squared() - r * r);
-    if disc < 0.0 {
-        return None;
-    }
-    let t = -b - disc.sqrt();
-    (t >= 0.0).then_some(t)
 }
 
 /// The robots' positions by grid cell, for neighbour queries.
@@ -93,7 +82,7 @@ pub fn sense(
                 let wall = map.ray_cast(p, dir, reach);
                 let echo = others
                     .iter()
-                    .filter_map(|q| ray_circle(p, dir, *q, fp))
+                    .filter_map(|q| geometry::ray_circle(p, dir, *q, fp))
                     .fold(wall, f64::min);
                 let echo = near
                     .iter()

@@ -5,7 +5,7 @@
 //! maps without anything unmapped. Hits are registered in the site frame from the
 //! leader's true pose (perfect registration).
 
-use base_station::map::Map;
+use base_station::geometry::map::Map;
 use base_station::scenario::Scenario;
 use glam::DVec2;
 

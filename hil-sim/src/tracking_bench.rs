@@ -7,8 +7,8 @@
 //! tracker, and what is measured is what yielding relies on: where a track says a person
 //! is, and where it says they will be a second on.
 
+use base_station::perception::tracking::{Motion, TrackView, Tracker};
 use base_station::scenario::Scenario;
-use base_station::tracking::{Motion, TrackView, Tracker};
 use glam::DVec2;
 use serde::Serialize;
 

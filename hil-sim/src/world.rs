@@ -5,8 +5,8 @@
 use std::collections::{HashMap, VecDeque};
 use std::time::{Duration, Instant};
 
+use base_station::geometry::map::Map;
 use base_station::geometry::Obstacle;
-use base_station::map::Map;
 use base_station::scenario::{Role, Scenario};
 use base_station::station::{nonce_base, BaseStation, MoverPolicy, StationConfig};
 use control_core::config::{self, RobotConfig};

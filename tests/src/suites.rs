@@ -90,7 +90,7 @@ pub const SUITES: &[Suite] = &[
     suite!("dense-bin-fields", Static, |s| generate::bin_field(
         s, 200, 2
     )),
-    suite!("streets", Static, |s| generate::street(s, 2)),
+    suite!("streets-pinched", Static, |s| generate::street(s, 2)),
     suite!("bin-on-the-line", Static, generate::bin_on_the_line),
     suite!("scattered-starts", Static, generate::scattered_starts),
     suite!("traps", Static, generate::trap),

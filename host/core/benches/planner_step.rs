@@ -2,8 +2,8 @@
 
 use std::hint::black_box;
 
+use base_station::geometry::map::Map;
 use base_station::geometry::Obstacle;
-use base_station::map::Map;
 use base_station::planner::{PlanPose, Planner, PlannerParams};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec2;

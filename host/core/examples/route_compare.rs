@@ -7,8 +7,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use base_station::geometry::map::Map;
 use base_station::geometry::Obstacle;
-use base_station::map::Map;
 use base_station::planner::route::{RouteParams, RoutePlanner};
 use base_station::scenario::Scenario;
 use glam::DVec2;

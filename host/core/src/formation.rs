@@ -36,8 +36,8 @@ use control_core::follower::{self, LeaderSnapshot};
 use control_core::Pose;
 use glam::DVec2;
 
+use crate::geometry::map::Map;
 use crate::geometry::PlanPose;
-use crate::map::Map;
 
 /// The shape outside passages.
 #[derive(Debug, Clone, PartialEq)]

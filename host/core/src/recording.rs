@@ -18,7 +18,7 @@ use foxglove::messages::{
 use foxglove::{Channel, Context, PartialMetadata, RawChannel, Schema};
 
 use crate::geometry::Obstacle;
-use crate::tracking::{Motion, TrackView};
+use crate::perception::tracking::{Motion, TrackView};
 
 /// The recording's metadata record (`run`): what ran, which build, since when.
 pub const METADATA_NAME: &str = "run";

@@ -3,8 +3,8 @@
 use base_station::formation::{
     FollowerStatus, FormationManager, FormationSpec, LeaderMotion, Target, WideShape,
 };
+use base_station::geometry::map::Map;
 use base_station::geometry::Obstacle;
-use base_station::map::Map;
 use base_station::planner::PlanPose;
 use glam::DVec2;
 

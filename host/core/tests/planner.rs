@@ -1,8 +1,8 @@
 //! The planner alone, driving an ideal unicycle at 10 Hz: each local-minimum case escapes
 //! and reaches the goal without touching anything.
 
+use base_station::geometry::map::Map;
 use base_station::geometry::Obstacle;
-use base_station::map::Map;
 use base_station::planner::{Mode, PlanPose, Planner, PlannerParams};
 use glam::DVec2;
 

@@ -1,8 +1,8 @@
 //! Generated site maps for the route benchmarks: a 100 × 100 m site with `n` obstacles
 //! (bins, blocks and wall pieces) at a density that leaves a way, seeded.
 
+use base_station::geometry::map::Map;
 use base_station::geometry::Obstacle;
-use base_station::map::Map;
 use glam::DVec2;
 
 pub const SIDE: f64 = 100.0;

@@ -17,7 +17,7 @@
 
 use glam::DVec2;
 
-use crate::map::Map;
+use crate::geometry::map::Map;
 
 /// Clearance floor: the force stays finite (195 with the paper's gains) on contact.
 pub const MIN_CLEARANCE: f64 = 0.05;

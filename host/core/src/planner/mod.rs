@@ -46,9 +46,9 @@ use std::collections::VecDeque;
 
 use glam::DVec2;
 
+use crate::geometry::map::Map;
 pub use crate::geometry::PlanPose;
 use crate::geometry::{wrap_angle, Obstacle};
-use crate::map::Map;
 use apf::ApfParams;
 use route::{NoRoute, Route, RouteParams, RoutePlanner};
 

@@ -31,8 +31,8 @@ use glam::DVec2;
 use radix_heap::RadixHeapMap;
 
 use crate::formation::FormationSpec;
+use crate::geometry::map::Map;
 use crate::geometry::Obstacle;
-use crate::map::Map;
 
 /// Most cells of a grid; larger sites get coarser cells.
 pub const MAX_CELLS: usize = 4_000_000;

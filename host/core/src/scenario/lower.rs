@@ -9,8 +9,8 @@ use glam::DVec2;
 
 use super::{ObstacleSpec, PlannerMode, Scenario, ShapeName, SLOT_SPEED_OF_MAX};
 use crate::formation::{FormationSpec, WideShape};
+use crate::geometry::map::Map;
 use crate::geometry::Obstacle;
-use crate::map::Map;
 use crate::planner::apf::ApfParams;
 use crate::planner::{Guidance, PlannerParams};
 

@@ -9,7 +9,7 @@ use protocol::messages::{faults, RobotMode, Telemetry};
 use protocol::units;
 
 use super::events::{StationEvent, REPORTED_FAULTS};
-use super::spacing::Body;
+use super::robots::spacing::Body;
 use crate::formation::{FollowerStatus, LeaderMotion};
 use crate::planner::PlanPose;
 
@@ -98,7 +98,7 @@ pub struct LeaderEstimate {
 }
 
 impl LeaderEstimate {
-    /// As [`super::spacing`] takes it: robot `id`.
+    /// As [`super::robots::spacing`] takes it: robot `id`.
     pub fn body(&self, id: u16) -> Body {
         Body {
             id,

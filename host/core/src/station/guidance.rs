@@ -18,8 +18,8 @@ use glam::DVec2;
 use super::fleet::LeaderEstimate;
 use super::StationConfig;
 use crate::formation::{FollowerStatus, FormationManager, Transformation};
+use crate::geometry::map::Map;
 use crate::geometry::Obstacle;
-use crate::map::Map;
 use crate::planner::route::{Route, RouteParams};
 use crate::planner::{Guidance as Mode, PlanPose, Planner, PlannerEvent};
 
@@ -137,7 +137,7 @@ impl Guidance {
     }
 
     /// Someone comes the other way down a narrow way: the route keeps out of the discs
-    /// along their way, from `from`, if the map leaves room ([`super::passing`]).
+    /// along their way, from `from`, if the map leaves room ([`super::movers::passing`]).
     pub fn keep_aside(&mut self, discs: &[(DVec2, f64)], from: DVec2, now_s: f64, world: &Map) {
         self.planner.avoid_all(discs, from, now_s, world);
     }

@@ -20,52 +20,46 @@
 //! - `events`: what the operator and the report are told; `smoothing`: the turn rate
 //!   the followers are told.
 
-mod blocking;
-mod detour;
 mod events;
-mod fix_check;
 mod fixes;
 mod fleet;
 mod guidance;
-mod localize;
+mod movers;
 mod operator;
-mod order;
-mod passing;
 mod radio;
+mod robots;
 mod smoothing;
-mod spacing;
-mod stepping_back;
-mod yielding;
 
 use glam::DVec2;
 use protocol::link::{Link, Timing};
 use protocol::messages::{Message, Stop, VelocityCommand};
 use protocol::{units, Address, FrameDecoder, MasterKey, RejectCounts};
 
-use blocking::Blocking;
-use detour::Detours;
 pub use events::StationEvent;
-use fixes::FixWatch;
-pub use fixes::{FixChange, FixLimits};
+use fixes::watch::FixWatch;
+pub use fixes::watch::{FixChange, FixLimits};
+pub use fixes::NotForwarded;
+use fixes::OutgoingFix;
 use fleet::Fleet;
 pub use fleet::{is_following, LeaderEstimate, RobotStatus};
 pub use guidance::{Drive, Guidance, Look, ShapeChange};
-pub use localize::NotForwarded;
-use localize::OutgoingFix;
+use movers::passing::{self, Passing};
+use movers::yielding;
+pub use movers::yielding::{Yield, Yielding, VEHICLE_SPACE_M};
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
-use order::LineOrder;
-use passing::Passing;
+use robots::detour::Detours;
+use robots::line_order::LineOrder;
+use robots::spacing::{self, Spacing};
+use robots::way::{self as blocking, Blocking};
 pub use smoothing::TurnRateSmoother;
-use spacing::Spacing;
-pub use yielding::{Yield, Yielding, VEHICLE_SPACE_M};
 
 use crate::formation::{FollowerStatus, FormationManager, FormationSpec};
-use crate::map::Map;
+use crate::geometry::map::Map;
+use crate::perception::tracking::{TrackView, Tracker};
 use crate::perception::{Change, Perception, PerceptionLimits};
 use crate::planner::route::Route;
 use crate::planner::{PlanPose, PlannerEvent, PlannerParams};
-use crate::tracking::{TrackView, Tracker};
 
 /// Every robot as estimated this period (the leader among them), and of those the
 /// followers following.

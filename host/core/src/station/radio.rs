@@ -8,10 +8,12 @@ use protocol::messages::{Detour, FormationCommand, LeaderState, Message, Slot, S
 use protocol::{units, Address, Reject, MAX_WIRE};
 
 use super::fleet::{is_following, position, LeaderEstimate};
-use super::spacing::{self, Order};
-use super::{detour, passing, BaseStation, Gate, Robots, StationEvent};
+use super::movers::passing;
+use super::robots::detour;
+use super::robots::spacing::{self, Order};
+use super::{BaseStation, Gate, Robots, StationEvent};
+use crate::perception::tracking::TrackView;
 use crate::planner::PlanPose;
-use crate::tracking::TrackView;
 
 impl BaseStation {
     /// Bytes to transmit, oldest first.

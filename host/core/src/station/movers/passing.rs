@@ -13,10 +13,10 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use glam::DVec2;
 
-use super::spacing::Body;
-use crate::map::Map;
+use crate::geometry::map::Map;
+use crate::perception::tracking::TrackView;
 use crate::planner::PlanPose;
-use crate::tracking::TrackView;
+use crate::station::robots::spacing::Body;
 
 /// Someone slower than this is not coming along a way, m/s.
 const WALKING: f64 = 0.5;

@@ -42,8 +42,8 @@ use std::collections::VecDeque;
 use glam::DVec2;
 use serde::Serialize;
 
-use crate::cells::{cell_of, CellIndex};
-use crate::map::Map;
+use crate::geometry::cells::{cell_of, CellIndex};
+use crate::geometry::map::Map;
 
 /// Hits this close belong to one cluster, m.
 pub const LINK_M: f64 = 0.45;

@@ -12,8 +12,8 @@
 use glam::DVec2;
 
 use super::yielding::MIN_RADIUS_M;
-use crate::map::Map;
-use crate::tracking::TrackView;
+use crate::geometry::map::Map;
+use crate::perception::tracking::TrackView;
 
 /// How far ahead a walker's way is judged, s.
 pub const AHEAD_S: f64 = 2.5;

@@ -1,4 +1,8 @@
-//! Obstacles and the distances the planner needs: to the surface, not the centre.
+//! Obstacles and the distances the planner needs: to the surface, not the centre; the
+//! site's map of them ([`map`]) and things by grid cell ([`cells`]).
+
+pub mod cells;
+pub mod map;
 
 use glam::DVec2;
 use serde::Serialize;
@@ -12,6 +16,18 @@ pub struct PlanPose {
     pub position: DVec2,
     /// Counter-clockwise from the site's x axis, rad.
     pub heading: f64,
+}
+
+/// Distance along the unit ray `o + t·dir` to a circle's rim, if it hits it from outside.
+pub fn ray_circle(o: DVec2, dir: DVec2, c: DVec2, r: f64) -> Option<f64> {
+    let oc = o - c;
+    let b = oc.dot(dir);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    (t >= 0.0).then_some(t)
 }
 
 /// An obstacle on the map.

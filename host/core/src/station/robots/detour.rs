@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use glam::DVec2;
 
 use crate::geometry::closest_on_segment;
-use crate::map::Map;
+use crate::geometry::map::Map;
 
 /// A follower at least this far from its reference (by its telemetry) may be sent round,
 /// m: nearer, it is keeping its slot.

@@ -64,10 +64,10 @@ use glam::DVec2;
 
 use super::stepping_back;
 use crate::formation::FormationManager;
+use crate::geometry::map::Map;
 use crate::geometry::PlanPose;
-use crate::map::Map;
+use crate::perception::tracking::TrackView;
 use crate::scenario::YieldingSpec;
-use crate::tracking::TrackView;
 
 /// What is kept from anything that moves and is larger than a person, m.
 pub const VEHICLE_SPACE_M: f64 = 1.0;
@@ -758,7 +758,7 @@ mod tests {
     use crate::scenario::Scenario;
 
     fn formation() -> FormationManager {
-        let src = include_str!("../../../../scenarios/paper-obstacles.toml");
+        let src = include_str!("../../../../../scenarios/paper-obstacles.toml");
         let s = Scenario::parse(src, "paper-obstacles.toml").expect("the shipped scenario");
         FormationManager::new(s.formation_spec())
     }

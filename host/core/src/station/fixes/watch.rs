@@ -41,7 +41,7 @@ pub const HOLD_OUTLIERS_MS: u32 = 5000;
 pub struct Candidate<F> {
     pub fix: F,
     /// How far it is from what the robot believes (lower is better; see
-    /// [`super::fix_check`]).
+    /// [`super::check`]).
     pub disagreement: f64,
     /// The robot would take it for an outlier.
     pub outlier: bool,

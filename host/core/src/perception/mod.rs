@@ -3,7 +3,7 @@
 //! avoids and routes round.
 //!
 //! A hit within `EXPLAINED` of a mapped surface is the map's own obstacle and ignored;
-//! the others go to the tracker ([`crate::tracking`]), which says which stand still. Those
+//! the others go to the tracker ([`crate::perception::tracking`]), which says which stand still. Those
 //! are kept one per `CELL`-sized cell, as discs of radius `CELL / 2` centred on the first
 //! hit of that cell ("marks"), grown by the personal space where a person stopped; a mark
 //! belongs to its track, and goes when the track moves on.
@@ -22,14 +22,15 @@
 //! Where the station has no simulated scanner (`basestation run`), the scans come in as a
 //! line feed ([`parse_scan_line`]) from whatever processes the leader's lidar.
 
+pub mod tracking;
 use std::collections::{BTreeSet, HashMap};
 
 use glam::DVec2;
 use serde::Serialize;
 
+use crate::geometry::map::Map;
 use crate::geometry::Obstacle;
-use crate::map::Map;
-use crate::tracking::MarkTag;
+use crate::perception::tracking::MarkTag;
 
 /// Side of the cells hits are merged in, m.
 pub const CELL: f64 = 0.2;

@@ -18,7 +18,7 @@ use control_core::follower::LeaderSnapshot;
 use control_core::RobotConfig;
 use glam::DVec2;
 
-use crate::map::Map;
+use crate::geometry::map::Map;
 
 mod swing;
 use swing::{sets_off_clear, steps_clear};

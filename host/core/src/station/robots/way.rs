@@ -23,8 +23,8 @@ use glam::DVec2;
 
 use super::spacing::{self, Body, STANDING};
 use crate::geometry::closest_on_segment;
-use crate::map::Map;
-use crate::tracking::TrackView;
+use crate::geometry::map::Map;
+use crate::perception::tracking::TrackView;
 
 /// A follower whose footprint is within this of the leader's stands in front of it, m.
 const NEAR_M: f64 = 0.3;

@@ -2,13 +2,15 @@
 //! offered as they come ([`BaseStation::forward_fix`]), the one that agrees best with the
 //! robot sent at its slot ([`super::fixes`], [`super::fix_check`]), their age watched.
 
+mod check;
+pub(super) mod watch;
 use protocol::messages::{Message, PoseFix, WirePose};
 use protocol::{units, Address};
 
-use super::fix_check::Belief;
-use super::fixes::{Candidate, FixWatch, Offer};
-use super::{BaseStation, FixChange, StationEvent};
+use super::{BaseStation, StationEvent};
 use crate::planner::PlanPose;
+use check::Belief;
+use watch::{Candidate, FixChange, FixWatch, Offer};
 
 /// Why a fix was not sent to its robot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
