@@ -3,7 +3,7 @@
 
 use base_station::geometry::map::Map;
 use base_station::geometry::Obstacle;
-use base_station::planner::{Mode, PlanPose, Planner, PlannerParams};
+use base_station::planner::{Mode, Pace, PlanPose, Planner, PlannerParams};
 use glam::DVec2;
 
 const FOOTPRINT: f64 = 0.3;
@@ -256,14 +256,17 @@ fn held_by_movers_a_narrowed_way_is_planned_again_seldom_a_blocked_one_at_once()
         let empty = Map::new(Vec::new());
         planner.step(0.0, 0.1, start(), &empty, 0.0, 1.0);
         assert_eq!(planner.replans(), 0);
-        planner.set_waiting(held);
         let map = Map::new(vec![sensed.clone()]);
         for k in 1..=(for_s * 10.0).round() as usize {
             if k % 10 == 1 {
                 // Sensed again each second, as scans renew what they see.
                 planner.add_obstacles(std::slice::from_ref(sensed));
             }
-            planner.step(k as f64 * 0.1, 0.1, start(), &map, 0.0, 0.0);
+            let pace = Pace {
+                held,
+                ..Pace::from(0.0)
+            };
+            planner.step(k as f64 * 0.1, 0.1, start(), &map, 0.0, pace);
         }
         planner.replans()
     };

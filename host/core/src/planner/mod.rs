@@ -197,18 +197,48 @@ pub struct Planner {
     events: Vec<PlannerEvent>,
     /// Whether the step ended without a route last time (said once).
     no_route_said: bool,
-    /// Braking harder than `max_accel` allows, m/s² (yielding to a mover).
-    brake: Option<f64>,
-    /// Speeding up harder than `max_accel` allows, m/s² (getting going among movers).
-    accel: Option<f64>,
-    /// Movers hold the leader: a way that only narrows is planned again at most every
-    /// [`HELD_REPLAN_S`].
-    waiting: bool,
+    /// The pace of the last step ([`Pace`]): how hard it brakes and speeds up, whether
+    /// movers hold it (a way that only narrows is then planned again at most every
+    /// [`HELD_REPLAN_S`]).
+    pace: Pace,
 }
 
 /// Held by movers, the leader plans again where marks only narrow its way at most this
-/// often, s (see [`Planner::set_waiting`]).
+/// often, s (see [`Pace::held`]).
 pub const HELD_REPLAN_S: f64 = 5.0;
+
+/// How fast the leader may go this step: the station's call among its followers and
+/// among what moves, passed in as a value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pace {
+    /// The share of the planner's speed: under 1 slows the leader (followers lagging,
+    /// people near), over 1 hurries it out of someone's way.
+    pub scale: f64,
+    /// Brake at up to this (m/s², above `max_accel`): stopping for someone in the way.
+    pub brake: Option<f64>,
+    /// Speed up at up to this (m/s², above `max_accel`): getting going among movers.
+    pub accel: Option<f64>,
+    /// Movers hold the leader. While they do, marks that only narrow the way ahead
+    /// (people standing round it) make the route be planned again at most every
+    /// [`HELD_REPLAN_S`]; marks that block it still do at once, and a hold that lasts
+    /// brings its own way round (`[yielding] replan_after_s`). Planned again at every
+    /// narrowing, the route of a fleet held among standing people swung from side to
+    /// side and the leader turned back and forth where it stood; never planned again
+    /// while held, it waited too long in denser crowds.
+    pub held: bool,
+}
+
+impl From<f64> for Pace {
+    /// Only a share of the speed: the planner's own acceleration, nobody holding it.
+    fn from(scale: f64) -> Self {
+        Self {
+            scale,
+            brake: None,
+            accel: None,
+            held: false,
+        }
+    }
+}
 
 /// The route layer's state.
 #[derive(Debug, Clone)]
@@ -331,9 +361,7 @@ impl Planner {
             routing: None,
             events: Vec::new(),
             no_route_said: false,
-            brake: None,
-            accel: None,
-            waiting: false,
+            pace: Pace::from(1.0),
         }
     }
 
@@ -501,9 +529,8 @@ impl Planner {
     }
 
     /// One planning step. `half_width`: the formation's lateral half-width (0 for a line),
-    /// added to the footprint; `speed_scale` under 1 slows the leader (followers lagging),
-    /// over 1 hurries it out of someone's way (the station's `yielding`). What happened is
-    /// noted for [`Planner::take_events`].
+    /// added to the footprint; `pace`: how fast the leader may go ([`Pace`], or just a
+    /// share of its speed). What happened is noted for [`Planner::take_events`].
     pub fn step(
         &mut self,
         now_s: f64,
@@ -511,8 +538,10 @@ impl Planner {
         pose: PlanPose,
         map: &Map,
         half_width: f64,
-        speed_scale: f64,
+        pace: impl Into<Pace>,
     ) -> Command {
+        self.pace = pace.into();
+        let speed_scale = self.pace.scale;
         let was_arrived = self.arrived();
         let command = self.step_guided(now_s, dt, pose, map, half_width, speed_scale);
         match (self.no_route().map(ToString::to_string), self.no_route_said) {
@@ -705,7 +734,7 @@ impl Planner {
         // Blocking the way: plan again now. Narrowing it below what the wide formation
         // needs (the route's cost changed): plan again, at most once a second, since a
         // street with something parked in it narrows with every scan; while movers hold
-        // the leader, at most every `HELD_REPLAN_S` (see `set_waiting`).
+        // the leader, at most every `HELD_REPLAN_S` (see [`Pace::held`]).
         let (hard, wide) = (routing.params.hard_clearance, routing.params.wide_clearance);
         let nearest = routing.route.as_ref().map_or(f64::INFINITY, |r| {
             nearest_to_route(&routing.unchecked, r, routing.s, wide)
@@ -721,7 +750,7 @@ impl Planner {
         if blocked || due {
             routing.unchecked.clear();
         }
-        if blocked || (due && nearest < wide && (!self.waiting || due_held)) {
+        if blocked || (due && nearest < wide && (!self.pace.held || due_held)) {
             tracing::info!(blocked, "something unmapped on the way: planning again");
             routing.replans += 1;
             routing.route = None;
@@ -833,37 +862,11 @@ impl Planner {
         self.drive_along(now_s, dt, pose, s, map, speed_scale)
     }
 
-    /// Brakes at up to `accel` (m/s², above `max_accel`) while set: the leader stopping
-    /// for someone in its way; `None`: at `max_accel`.
-    pub fn set_braking(&mut self, accel: Option<f64>) {
-        self.brake = accel;
-    }
-
-    /// Whether movers hold the leader (the yielding layer's call, the period before).
-    /// While they do, marks that only narrow the way ahead (people standing round it)
-    /// make the route be planned again at most every [`HELD_REPLAN_S`]; marks that block
-    /// it still do at once, and a hold that lasts brings its own way round (`[yielding]
-    /// replan_after_s`). Planned again at every narrowing, once a second, the route of a
-    /// fleet held among standing people swung between a way round to the north and one
-    /// to the south, and the leader turned back and forth where it stood
-    /// (`plaza-0.2-social-seed1540`: 179 replans, the goal never reached). Never planned
-    /// again while held, it waited too long in denser crowds (0.3 persons/m²: 91 goals of
-    /// 128 instead of 94; at most every 5 s, 94; docs/results.md#movers).
-    pub fn set_waiting(&mut self, held: bool) {
-        self.waiting = held;
-    }
-
-    /// Speeds up at up to `accel` (m/s², above `max_accel`) while set: the leader
-    /// getting going again among movers; `None`: at `max_accel`.
-    pub fn set_speeding_up(&mut self, accel: Option<f64>) {
-        self.accel = accel;
-    }
-
     /// The speed toward `target`, braking and speeding up within their limits.
     fn ramp_to(&mut self, target: f64, dt: f64) {
         let a = self.params.max_accel;
-        let down = self.brake.unwrap_or(a).max(a);
-        let up = self.accel.unwrap_or(a).max(a);
+        let down = self.pace.brake.unwrap_or(a).max(a);
+        let up = self.pace.accel.unwrap_or(a).max(a);
         self.v += (target - self.v).clamp(-down * dt, up * dt);
     }
 

@@ -84,17 +84,21 @@ pub enum StationEvent {
         robot: u16,
         at_ms: u32,
     },
-    /// Movers crossing the formation's way hold the leader (it slows to a standstill).
+    /// Movers hold the leader: it waits for them to pass (`movers::Manner::Waiting`).
     Yielding {
         at_ms: u32,
     },
-    /// The leader, held, began to back out of the way of someone who may not see it.
+    /// The leader began to back out of the way of someone who may not see it.
     SteppingBack {
         at_ms: u32,
     },
-    /// The leader, with no pace safe, began to go on out of the way of someone who would
-    /// walk into it standing (`yielding`).
+    /// The leader began to go on, hurrying if need be, out of the way of someone who
+    /// would walk into it standing.
     ClearingWay {
+        at_ms: u32,
+    },
+    /// The leader is back at its route's pace after one of the three above.
+    PaceResumed {
         at_ms: u32,
     },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
@@ -138,6 +142,7 @@ impl StationEvent {
             E::Yielding { at_ms } => (*at_ms, "yielding".into(), Some(leader)),
             E::SteppingBack { at_ms } => (*at_ms, "stepping_back".into(), Some(leader)),
             E::ClearingWay { at_ms } => (*at_ms, "clearing_way".into(), Some(leader)),
+            E::PaceResumed { at_ms } => (*at_ms, "pace_resumed".into(), Some(leader)),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }

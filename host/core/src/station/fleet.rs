@@ -224,14 +224,6 @@ impl Fleet {
             .collect()
     }
 
-    /// Each follower's position, in slot order (None: no fresh telemetry).
-    pub fn follower_positions(&self, now_ms: u32) -> Vec<Option<DVec2>> {
-        self.followers
-            .iter()
-            .map(|id| Some(position(&self.telemetry(*id, now_ms)?)))
-            .collect()
-    }
-
     /// Of `bodies`, the followers following (not idle, stopped or failsafe), in order.
     pub fn following(&self, bodies: &[Body], now_ms: u32) -> Vec<Body> {
         bodies

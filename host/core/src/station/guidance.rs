@@ -21,7 +21,7 @@ use crate::formation::{FollowerStatus, FormationManager, Transformation};
 use crate::geometry::map::Map;
 use crate::geometry::Obstacle;
 use crate::planner::route::{Route, RouteParams};
-use crate::planner::{Guidance as Mode, PlanPose, Planner, PlannerEvent};
+use crate::planner::{Guidance as Mode, Pace, PlanPose, Planner, PlannerEvent};
 
 /// Spacing of the paths the formation manager looks along, m.
 const PATH_STEP: f64 = 0.25;
@@ -47,7 +47,7 @@ pub struct Look {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ShapeChange {
     Slows,
-    /// Not while it goes on out of someone's way (`yielding`).
+    /// Not while it goes on out of someone's way (`movers`).
     Ignored,
 }
 
@@ -113,21 +113,6 @@ impl Guidance {
     /// Whether movers crowd the formation's way (the wide shape gives way to the line).
     pub fn set_crowded(&mut self, crowded: bool) {
         self.formation.set_crowded(crowded);
-    }
-
-    /// Brakes harder than the planner's comfort allows (yielding), or not (`None`).
-    pub fn set_braking(&mut self, accel: Option<f64>) {
-        self.planner.set_braking(accel);
-    }
-
-    /// Whether movers hold the leader ([`crate::planner::Planner::set_waiting`]).
-    pub fn set_waiting(&mut self, held: bool) {
-        self.planner.set_waiting(held);
-    }
-
-    /// Speeds up harder than the planner's comfort allows (among movers), or not.
-    pub fn set_speeding_up(&mut self, accel: Option<f64>) {
-        self.planner.set_speeding_up(accel);
     }
 
     /// Movers have held the leader: a way round the disc (`at`, `radius`) they stand in,
@@ -222,23 +207,25 @@ impl Guidance {
         waiting
     }
 
-    /// Step 2: the leader's command, slowed by `waiting` and (`change`) by a shape change.
+    /// Step 2: the leader's command at `pace` (the station's: its followers, what moves),
+    /// slowed (`change`) by a shape change.
     pub fn drive(
         &mut self,
         now_s: f64,
         leader: PlanPose,
-        waiting: f64,
+        pace: Pace,
         change: ShapeChange,
         world: &Map,
     ) -> Drive {
-        let speed_scale = match change {
-            ShapeChange::Slows => waiting.min(self.formation.speed_factor(now_s)),
-            ShapeChange::Ignored => waiting,
+        let scale = match change {
+            ShapeChange::Slows => pace.scale.min(self.formation.speed_factor(now_s)),
+            ShapeChange::Ignored => pace.scale,
         };
         let half_width = self.formation.half_width();
+        let pace = Pace { scale, ..pace };
         let cmd = self
             .planner
-            .step(now_s, self.period_s, leader, world, half_width, speed_scale);
+            .step(now_s, self.period_s, leader, world, half_width, pace);
         Drive {
             v: cmd.v,
             omega: cmd.omega,

@@ -20,20 +20,23 @@
 //! - `events`: what the operator and the report are told; `smoothing`: the turn rate
 //!   the followers are told.
 
+mod drive;
 mod events;
 mod fixes;
 mod fleet;
 mod guidance;
+mod model;
 mod movers;
 mod operator;
+mod orders;
 mod radio;
 mod robots;
 mod smoothing;
 
 use glam::DVec2;
 use protocol::link::{Link, Timing};
-use protocol::messages::{Message, Stop, VelocityCommand};
-use protocol::{units, Address, FrameDecoder, MasterKey, RejectCounts};
+use protocol::messages::Stop;
+use protocol::{Address, FrameDecoder, MasterKey, RejectCounts};
 
 pub use events::StationEvent;
 use fixes::watch::FixWatch;
@@ -43,15 +46,17 @@ use fixes::OutgoingFix;
 use fleet::Fleet;
 pub use fleet::{is_following, LeaderEstimate, RobotStatus};
 pub use guidance::{Drive, Guidance, Look, ShapeChange};
-use movers::passing::{self, Passing};
-use movers::yielding;
-pub use movers::yielding::{Yield, Yielding, VEHICLE_SPACE_M};
+use movers::oncoming::{self, Passing};
+pub use movers::prediction::VEHICLE_SPACE_M;
+pub use movers::Manner;
+use movers::Movers;
 pub use operator::OperatorCommand;
 use operator::OperatorHold;
+use robots::desk::Desk;
 use robots::detour::Detours;
 use robots::line_order::LineOrder;
 use robots::spacing::{self, Spacing};
-use robots::way::{self as blocking, Blocking};
+use robots::way::Blocking;
 pub use smoothing::TurnRateSmoother;
 
 use crate::formation::{FollowerStatus, FormationManager, FormationSpec};
@@ -188,8 +193,8 @@ pub struct BaseStation {
     perception: Perception,
     /// What of it moves.
     tracker: Tracker,
-    /// The leader's pace among what moves.
-    yielding: Yielding,
+    /// The movers predicted, and the leader's pace among them.
+    movers: Movers,
     /// The map and what was sensed: what the planner and the formation avoid.
     world: Map,
     outbox: Vec<u8>,
@@ -211,8 +216,10 @@ pub struct BaseStation {
     passing: Passing,
     /// Whether the line's followers stand in slot order.
     line_order: LineOrder,
-    /// The leader backs out of someone's way (`stepping_back`).
-    backing: bool,
+    /// One order per follower, by rank.
+    desk: Desk,
+    /// The points the followers were told to make for last period.
+    orders: orders::Told,
 }
 
 impl BaseStation {
@@ -240,7 +247,7 @@ impl BaseStation {
             guidance: Guidance::new(&cfg),
             perception: Perception::new(cfg.perception),
             tracker: Tracker::new(cfg.yielding.personal_space_m),
-            yielding: Yielding::new(cfg.yielding.clone()),
+            movers: Movers::new(cfg.yielding.clone()),
             world: cfg.map.clone(),
             cfg,
             link,
@@ -259,7 +266,8 @@ impl BaseStation {
             blocking: Blocking::default(),
             passing: Passing::default(),
             line_order: LineOrder::default(),
-            backing: false,
+            desk: Desk::default(),
+            orders: orders::Told::new(),
         }
     }
 
@@ -377,7 +385,8 @@ impl BaseStation {
         }
     }
 
-    /// One 10 Hz step: the link's upkeep, the gate, then guidance and what it sends.
+    /// One 10 Hz step: the link's upkeep, the gate, then the movers and guidance, the
+    /// followers' orders, and the leader's drive.
     pub fn step(&mut self, now_ms: u32) {
         self.upkeep(now_ms);
         let Some(leader) = self.pass_gate(now_ms) else {
@@ -387,63 +396,55 @@ impl BaseStation {
         let statuses = self
             .fleet
             .follower_statuses(now_ms, |id| self.detours.is_active(id));
-        let movers: Vec<TrackView> = match self.cfg.movers {
-            MoverPolicy::Heed => self.tracker.moving(now_ms).collect(),
-            MoverPolicy::Ignore | MoverPolicy::Parked => Vec::new(),
-        };
-        let crowded = self.yielding.crowded(now_s, leader.pose.position, &movers);
+        let tracks = self.moving_tracks(now_ms);
+        // Every robot as estimated this period (the leader among them).
+        let bodies = self.fleet.bodies(now_ms);
+        let positions = drive::positions(leader.pose.position, &bodies, self.cfg.leader);
+        let footprint = self.guidance.formation().spec().footprint;
+        let (predicted, crowded) = self.movers.observe(now_s, &positions, footprint, &tracks);
         self.guidance.set_crowded(crowded);
         let look = self.guidance.look(now_s, &leader, &statuses, &self.world);
         if let Some(change) = look.change {
-            tracing::info!(to = ?change.to, "formation change");
+            tracing::info!(
+                to = change.to.shape_name(change.to.blend()),
+                "formation change"
+            );
             self.events.push(StationEvent::Transformation {
                 to: change.to,
                 at_ms: now_ms,
             });
         }
         self.keep_line_order(&look.behind, &statuses, now_ms);
-        // Every robot as estimated this period (the leader among them).
-        let bodies = self.fleet.bodies(now_ms);
         let following = self.fleet.following(&bodies, now_ms);
         let robots = (&bodies[..], &following[..]);
-        self.send_detours(leader.pose, &look.behind, &movers, robots, now_ms);
-        if !self.fleet_ready(now_ms) || self.cfg.movers == MoverPolicy::Parked {
-            // Leave only with the whole fleet: until then the leader holds.
-            self.last_command = (0.0, 0.0);
-            let hold = Message::VelocityCommand(VelocityCommand {
-                v_mm_s: 0,
-                omega_mrad_s: 0,
-            });
-            self.send(Address::Robot(self.cfg.leader), now_ms, &hold);
-            self.broadcast_leader_state(&leader, (0.0, 0.0), 0.0, now_ms);
+        // Leave only with the whole fleet: until then (or parked) the leader holds.
+        let ready = self.fleet_ready(now_ms) && self.cfg.movers != MoverPolicy::Parked;
+        let round = self.give_orders(leader.pose, &look, &tracks, robots, ready, now_ms);
+        if !ready {
+            self.hold_leader(&leader, now_ms);
             return;
         }
-        self.keep_aside(leader.pose, &movers, now_s);
-        self.go_round_followers(&look, robots, now_ms);
-        let y = self.yield_to_movers(&leader, &look, &movers, now_ms);
-        // Going on to clear someone's way, the leader does not wait for its followers.
-        let (scale, change) = if y.clearing {
-            (y.share, ShapeChange::Ignored)
-        } else {
-            (look.waiting.min(y.share), ShapeChange::Slows)
-        };
-        let drive = self
-            .guidance
-            .drive(now_s, leader.pose, scale, change, &self.world);
-        self.report_planner(&drive.events, now_ms);
-        if drive
-            .events
-            .iter()
-            .any(|e| matches!(e, PlannerEvent::NoRoute(_)))
-        {
-            self.drop_lanes();
+        self.keep_aside(leader.pose, &tracks, now_s);
+        if let Some((at, radius)) = round {
+            tracing::info!(
+                x = at.x,
+                y = at.y,
+                "a follower stands in the leader's way: going round it"
+            );
+            let from = leader.pose.position;
+            self.guidance.avoid(at, radius, from, now_s, &self.world);
         }
-        let command = if y.back {
-            (-self.cfg.reverse_speed, 0.0)
-        } else {
-            (drive.v, drive.omega)
-        };
-        self.command_leader(&leader, command, &bodies, look.blend, now_ms);
+        let decision = self.pace_among_movers(&leader, &look, &predicted, crowded, robots, now_ms);
+        self.drive_leader(&leader, &look, &decision, &bodies, now_ms);
+    }
+
+    /// The tracks judged moving that the station acts on (none in a baseline that
+    /// ignores them).
+    fn moving_tracks(&self, now_ms: u32) -> Vec<TrackView> {
+        match self.cfg.movers {
+            MoverPolicy::Heed => self.tracker.moving(now_ms).collect(),
+            MoverPolicy::Ignore | MoverPolicy::Parked => Vec::new(),
+        }
     }
 
     /// What every period needs whatever the gate says: handshakes, slots when due, the
@@ -541,119 +542,6 @@ impl BaseStation {
         true
     }
 
-    /// Where a follower has stood in the standing leader's way for a while, the leader's
-    /// way goes round it (`blocking`). `robots`: every robot this period, and the
-    /// followers following.
-    fn go_round_followers(&mut self, look: &Look, robots: Robots<'_>, now_ms: u32) {
-        let (bodies, following) = robots;
-        let Some(leader) = bodies.iter().find(|b| b.id == self.cfg.leader).copied() else {
-            return;
-        };
-        let people: Vec<TrackView> = self.tracker.views(now_ms).collect();
-        let fleet = blocking::Fleet {
-            leader,
-            ahead: &look.ahead,
-            followers: following,
-            robots: bodies,
-            footprint: self.guidance.formation().spec().footprint,
-            offset: self.cfg.control_offset,
-            site: &self.cfg.map,
-            people: &people,
-        };
-        let now_s = now_ms as f64 / 1000.0;
-        let blocked = self.blocking.step(now_s, &fleet);
-        for (robot, point, began) in blocked.backs {
-            if began {
-                tracing::info!(robot, "a follower in the leader's way backs away from it");
-                self.events.push(StationEvent::FollowerGivesWay {
-                    robot,
-                    at_ms: now_ms,
-                });
-            }
-            self.send_detour(robot, point, now_ms);
-        }
-        if let Some((at, radius)) = blocked.avoid {
-            tracing::info!(
-                x = at.x,
-                y = at.y,
-                "a follower stands in the leader's way: going round it"
-            );
-            let from = leader.position;
-            self.guidance.avoid(at, radius, from, now_s, &self.world);
-        }
-    }
-
-    /// The share of its pace the leader may use among what moves (1: nothing moves near),
-    /// and whether it backs out of someone's way instead.
-    fn yield_to_movers(
-        &mut self,
-        leader: &LeaderEstimate,
-        look: &Look,
-        movers: &[TrackView],
-        now_ms: u32,
-    ) -> Yield {
-        let followers = self.fleet.follower_positions(now_ms);
-        let fleet = yielding::Fleet {
-            leader: leader.pose,
-            v: leader.v,
-            commanded: self.last_command.0,
-            max_speed: self.cfg.planner.max_speed,
-            hurry: self.cfg.follower_speed,
-            max_accel: self.resume_accel(),
-            brake: self.cfg.yield_brake.max(self.cfg.planner.max_accel),
-            footprint: self.guidance.formation().spec().footprint,
-            ahead: &look.ahead,
-            behind: &look.behind,
-            followers: &followers,
-            follower_speed: self.cfg.follower_speed,
-            reverse: self.cfg.reverse_speed,
-            site: &self.world,
-        };
-        let now_s = now_ms as f64 / 1000.0;
-        let y = self
-            .yielding
-            .decide(now_s, &fleet, self.guidance.formation(), movers);
-        if y.began {
-            tracing::info!(
-                movers = movers.len(),
-                "yielding: the leader waits for movers"
-            );
-            self.events.push(StationEvent::Yielding { at_ms: now_ms });
-        }
-        // Braking for someone: as hard as the robot allows, not at the planner's comfort.
-        let braking = y.share * self.cfg.planner.max_speed < leader.v - 0.05;
-        let brake = braking.then_some(self.cfg.yield_brake);
-        self.guidance.set_braking(brake);
-        self.guidance.set_waiting(y.held);
-        let resume = !movers.is_empty();
-        self.guidance
-            .set_speeding_up(resume.then_some(self.resume_accel()));
-        if let Some((at, radius)) = y.avoid {
-            let from = leader.pose.position;
-            self.guidance.avoid(at, radius, from, now_s, &self.world);
-        }
-        if y.back && !self.backing {
-            tracing::info!("the leader steps back out of someone's way");
-            self.events
-                .push(StationEvent::SteppingBack { at_ms: now_ms });
-        }
-        if y.clearing_began {
-            tracing::info!("the leader goes on out of someone's way");
-            self.events
-                .push(StationEvent::ClearingWay { at_ms: now_ms });
-        }
-        self.backing = y.back;
-        y
-    }
-
-    /// How hard the leader speeds up among movers: as hard as its followers may, not at
-    /// the planner's comfort. Held again and again in a crowd, a leader creeping back to
-    /// its pace at 0.3 m/s² took 1.54 × the empty time on 0.1 persons/m² plazas, 1.49 ×
-    /// at 0.5 m/s² (`docs/results.md#movers`).
-    fn resume_accel(&self) -> f64 {
-        self.cfg.follower_accel.max(self.cfg.planner.max_accel)
-    }
-
     /// The line's slots handed out again in the order its followers stand on the
     /// leader's trail (`behind`), where they came out of order (`order`).
     /// `statuses`: the followers' in slot order.
@@ -684,7 +572,7 @@ impl BaseStation {
 
     /// People coming the other way down a narrow way: the route keeps out of their way.
     fn keep_aside(&mut self, leader: PlanPose, movers: &[TrackView], now_s: f64) {
-        let space = passing::Space {
+        let space = oncoming::Space {
             footprint: self.guidance.formation().spec().footprint,
             personal: self.cfg.yielding.personal_space_m,
         };
@@ -729,28 +617,6 @@ impl BaseStation {
                 PlannerEvent::Arrived => StationEvent::Arrived { at_ms },
             });
         }
-    }
-
-    /// The leader's command (`v` capped short of the other robots, `bodies`: [`spacing`]),
-    /// then the leader's state to every follower.
-    fn command_leader(
-        &mut self,
-        leader: &LeaderEstimate,
-        (v, omega): (f64, f64),
-        bodies: &[spacing::Body],
-        blend: f64,
-        now_ms: u32,
-    ) {
-        let body = leader.body(self.cfg.leader);
-        let footprint = self.guidance.formation().spec().footprint;
-        let v = spacing::cap_leader(&body, v, bodies, footprint, self.cfg.yield_brake);
-        self.last_command = (v, omega);
-        let command = Message::VelocityCommand(VelocityCommand {
-            v_mm_s: units::to_milli_i16(v as f32).unwrap_or(0),
-            omega_mrad_s: units::to_milli_i16(omega as f32).unwrap_or(0),
-        });
-        self.send(Address::Robot(self.cfg.leader), now_ms, &command);
-        self.broadcast_leader_state(leader, (v, omega), blend, now_ms);
     }
 
     /// The operator's command, sent at once and held (a Stop or an emergency stop is

@@ -1,19 +1,14 @@
 //! What the station hears and says over the authenticated link: frames in (telemetry to
-//! the fleet room, handshakes answered at once), and out (challenges, slots, detours, the
-//! leader's state), each sealed into the outbox the driver sends.
+//! the fleet room, handshakes answered at once), and out (challenges, slots, the orders
+//! the desk gave, the leader's state), each sealed into the outbox the driver sends.
 
 use glam::DVec2;
 use protocol::link::Event;
 use protocol::messages::{Detour, FormationCommand, LeaderState, Message, Slot, Stop, WirePose};
 use protocol::{units, Address, Reject, MAX_WIRE};
 
-use super::fleet::{is_following, position, LeaderEstimate};
-use super::movers::passing;
-use super::robots::detour;
-use super::robots::spacing::{self, Order};
-use super::{BaseStation, Gate, Robots, StationEvent};
-use crate::perception::tracking::TrackView;
-use crate::planner::PlanPose;
+use super::fleet::LeaderEstimate;
+use super::{BaseStation, Gate, StationEvent};
 
 impl BaseStation {
     /// Bytes to transmit, oldest first.
@@ -146,148 +141,6 @@ impl BaseStation {
         }
     }
 
-    /// Detours for the followers held on their way ([`detour`]) or held short of another
-    /// robot (`spacing`), sent every period.
-    /// `movers`: the tracks judged moving; `robots`: every robot as estimated this period,
-    /// and the followers following.
-    pub(super) fn send_detours(
-        &mut self,
-        leader: PlanPose,
-        behind: &[DVec2],
-        movers: &[TrackView],
-        (bodies, following): Robots<'_>,
-        now_ms: u32,
-    ) {
-        let mut followers = Vec::new();
-        for (k, id) in self.fleet.followers.iter().enumerate() {
-            let Some(t) = self.fleet.telemetry(*id, now_ms) else {
-                continue;
-            };
-            if !is_following(t.mode) {
-                continue;
-            }
-            followers.push(detour::Follower {
-                id: *id,
-                position: position(&t),
-                reference: self.guidance.formation().reference(k, leader, behind),
-                error: t.tracking_error_mm as f64 / 1000.0,
-            });
-        }
-        let robots = self.fleet.positions(now_ms);
-        let footprint = self.guidance.formation().spec().footprint;
-        let detours = self
-            .detours
-            .step(now_ms, &self.world, footprint, &followers, &robots);
-        // By rank: a hold or a step for another robot, then a step aside for someone
-        // passing, then a way round what the map shows.
-        let mut told = std::collections::BTreeMap::new();
-        for (robot, point, new) in detours {
-            if new {
-                tracing::info!(
-                    robot,
-                    x = point.x,
-                    y = point.y,
-                    "follower sent round an obstacle"
-                );
-                self.events.push(StationEvent::FollowerDetour {
-                    robot,
-                    at_ms: now_ms,
-                });
-            }
-            told.insert(robot, point);
-        }
-        told.extend(self.step_aside(following, bodies, movers, now_ms));
-        let slots: Vec<(u16, DVec2)> = followers.iter().map(|f| (f.id, f.reference)).collect();
-        let sent: Vec<(u16, DVec2)> = told.iter().map(|(id, p)| (*id, *p)).collect();
-        told.extend(self.hold_apart(following, bodies, &slots, &sent, now_ms));
-        for (robot, point) in told {
-            self.send_detour(robot, point, now_ms);
-        }
-    }
-
-    /// The followers (`following`: those following; `robots`: every robot) stepping aside
-    /// for someone in `movers` coming along a narrow way (`passing`), with the point each
-    /// makes for.
-    fn step_aside(
-        &mut self,
-        following: &[spacing::Body],
-        robots: &[spacing::Body],
-        movers: &[TrackView],
-        now_ms: u32,
-    ) -> Vec<(u16, DVec2)> {
-        let fleet = passing::Fleet {
-            followers: following,
-            robots,
-            space: passing::Space {
-                footprint: self.guidance.formation().spec().footprint,
-                personal: self.cfg.yielding.personal_space_m,
-            },
-            offset: self.cfg.control_offset,
-        };
-        let maps = passing::Maps {
-            site: &self.cfg.map,
-            world: &self.world,
-        };
-        let stepping = self.passing.step_aside(now_ms, &fleet, movers, maps);
-        for (robot, began) in stepping.iter().map(|s| (s.0, s.2)) {
-            if began {
-                tracing::info!(robot, "follower steps aside for someone passing");
-                self.events.push(StationEvent::FollowerStepsAside {
-                    robot,
-                    at_ms: now_ms,
-                });
-            }
-        }
-        stepping.into_iter().map(|(id, p, _)| (id, p)).collect()
-    }
-
-    /// The followers (as for `step_aside`) held short of another robot or off a slot
-    /// (`slots`: each follower's) the leader stands on, and those stepping aside for
-    /// them (`spacing`), with the point each makes for. `sent`: the points some are sent
-    /// to this period instead of their slots, which they set off for when let go.
-    fn hold_apart(
-        &mut self,
-        following: &[spacing::Body],
-        robots: &[spacing::Body],
-        slots: &[(u16, DVec2)],
-        sent: &[(u16, DVec2)],
-        now_ms: u32,
-    ) -> Vec<(u16, DVec2)> {
-        let fleet = spacing::Fleet {
-            followers: following,
-            robots,
-            footprint: self.guidance.formation().spec().footprint,
-            offset: self.cfg.control_offset,
-            brake: self.cfg.yield_brake,
-            robot: self.cfg.robot,
-            leader: leader_snapshot(robots, self.cfg.leader, self.told_twist()),
-            sent,
-        };
-        let mut told = self.spacing.step(now_ms, &fleet, slots, &self.world);
-        if let Some(leader) = robots.iter().find(|b| b.id == self.cfg.leader) {
-            told.extend(self.spacing.hold_off_slots(&fleet, leader, slots));
-        }
-        let mut out = Vec::new();
-        for t in told {
-            if t.began {
-                match t.order {
-                    Order::Hold => {
-                        tracing::info!(robot = t.id, "follower held short of another robot")
-                    }
-                    Order::MakeRoom => {
-                        tracing::info!(robot = t.id, "follower steps aside for another")
-                    }
-                }
-                self.events.push(StationEvent::FollowerGivesWay {
-                    robot: t.id,
-                    at_ms: now_ms,
-                });
-            }
-            out.push((t.id, t.point));
-        }
-        out
-    }
-
     /// Tells a follower to make for `point` instead of its slot, this period.
     pub(super) fn send_detour(&mut self, robot: u16, point: DVec2, now_ms: u32) {
         let (Ok(x_mm), Ok(y_mm)) = (
@@ -302,25 +155,4 @@ impl BaseStation {
             &Message::Detour(Detour { x_mm, y_mm }),
         );
     }
-
-    /// The leader's twist as the followers were last told it: the speed it was commanded
-    /// (every command is broadcast as it is sent) and the smoothed turn rate.
-    fn told_twist(&self) -> (f64, f64) {
-        (self.last_command.0, self.broadcast_omega.omega())
-    }
-}
-
-/// The leader as its followers' law takes it: where it is, and the twist they were last
-/// told it drives.
-fn leader_snapshot(
-    robots: &[spacing::Body],
-    leader: u16,
-    twist: (f64, f64),
-) -> Option<control_core::follower::LeaderSnapshot> {
-    let l = robots.iter().find(|b| b.id == leader)?;
-    Some(control_core::follower::LeaderSnapshot {
-        pose: control_core::Pose::new(l.position.x as f32, l.position.y as f32, l.heading as f32),
-        v: twist.0 as f32,
-        omega: twist.1 as f32,
-    })
 }

@@ -1,7 +1,196 @@
-//! The station among what moves: the leader's pace among people, cyclists and vehicles
-//! (`yielding`, `stepping_back`), and the route kept aside for people coming the other way
-//! down a narrow way (`passing`).
+//! The station among what moves: what each mover is expected to do (`prediction`), the
+//! leader's pace from one ranking of candidate speeds (`pace`), and the route kept aside
+//! for people coming the other way down a narrow way (`oncoming`). One decision a period,
+//! returned as a value ([`Decision`]); one event when the fleet's manner changes, and one
+//! when it ends ([`Manner`]).
 
-pub(super) mod passing;
-pub(super) mod stepping_back;
-pub(super) mod yielding;
+pub(crate) mod oncoming;
+pub(crate) mod pace;
+pub(crate) mod prediction;
+
+use glam::DVec2;
+
+pub use pace::Candidate;
+use pace::{Choice, Context, HELD_BELOW};
+use prediction::{Mover, Prediction, MIN_RADIUS_M};
+
+use crate::perception::tracking::TrackView;
+use crate::scenario::YieldingSpec;
+use crate::station::model;
+
+/// A manner held this long is announced; a return to the route's pace, once it has held
+/// this long, ends it: the ranking may try another candidate for a period or two, s.
+const SETTLE_S: f64 = 0.3;
+const RESUMED_AFTER_S: f64 = 1.0;
+
+/// How the fleet goes among what moves, as the operator is told.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Manner {
+    /// At the route's pace, or slowed for courtesy.
+    Route,
+    /// Held: standing (or creeping) for someone.
+    Waiting,
+    /// Backing out of the way of someone who may not see it.
+    SteppingBack,
+    /// Going on, hurrying if need be, out of the way of someone who would walk into it.
+    ClearingWay,
+}
+
+/// What the movers decided this period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    pub choice: Choice,
+    /// The speed the leader makes for, m/s (negative: backing).
+    pub target: f64,
+    /// Movers hold the leader.
+    pub held: bool,
+    /// Held long enough: a way round is due, round this point and radius.
+    pub avoid: Option<(DVec2, f64)>,
+    /// The manner announced now, if it changed (`Some(Route)`: the last one ended).
+    pub announce: Option<Manner>,
+    /// Anything moved near: the leader gets going again as hard as its followers may.
+    pub among_movers: bool,
+}
+
+/// The station's movers room, from period to period.
+#[derive(Debug, Clone)]
+pub struct Movers {
+    spec: YieldingSpec,
+    prediction: Prediction,
+    last: Candidate,
+    held_since_s: Option<f64>,
+    /// When a way round was last asked for.
+    avoided_s: Option<f64>,
+    /// The manner announced, and the one chosen since when.
+    announced: Manner,
+    current: (Manner, f64),
+}
+
+impl Movers {
+    pub fn new(spec: YieldingSpec) -> Self {
+        Self {
+            spec,
+            prediction: Prediction::default(),
+            last: Candidate::Share(1.0),
+            held_since_s: None,
+            avoided_s: None,
+            announced: Manner::Route,
+            current: (Manner::Route, 0.0),
+        }
+    }
+
+    pub fn spec(&self) -> &YieldingSpec {
+        &self.spec
+    }
+
+    /// The movers as predicted this period (`robots`: the leader first), and whether they
+    /// crowd the fleet's way.
+    pub fn observe<'a>(
+        &mut self,
+        now_s: f64,
+        robots: &[DVec2],
+        footprint: f64,
+        tracks: &'a [TrackView],
+    ) -> (Vec<Mover<'a>>, bool) {
+        let movers =
+            self.prediction
+                .step(now_s, robots, footprint, tracks, self.spec.personal_space_m);
+        (movers, self.prediction.crowded(now_s))
+    }
+
+    /// The leader's pace this period (`ctx.pace`: the route's, m/s).
+    pub fn decide(
+        &mut self,
+        now_s: f64,
+        fleet: &model::Fleet,
+        movers: &[Mover],
+        ctx: &Context,
+        site: &crate::geometry::map::Map,
+    ) -> Decision {
+        let choice = if movers.is_empty() {
+            Choice {
+                candidate: Candidate::Share(1.0),
+                key: pace::Key::default(),
+                clears: false,
+            }
+        } else {
+            pace::choose(fleet, movers, ctx, self.last, site)
+        };
+        tracing::trace!(now_s, chosen = ?choice.candidate, key = ?choice.key, "pace");
+        self.last = choice.candidate;
+        let target = choice.candidate.target(ctx);
+        let held = target < HELD_BELOW * ctx.pace;
+        if !held {
+            self.held_since_s = None;
+        } else if self.held_since_s.is_none() {
+            self.held_since_s = Some(now_s);
+        }
+        let avoid = self.way_round_due(now_s, fleet.leader.pose.position, ctx.pace, movers);
+        let manner = manner_of(&choice, target, held);
+        Decision {
+            choice,
+            target,
+            held,
+            avoid,
+            announce: self.announce(now_s, manner),
+            among_movers: !movers.is_empty(),
+        }
+    }
+
+    /// The manner to announce, if it changed and has settled.
+    fn announce(&mut self, now_s: f64, manner: Manner) -> Option<Manner> {
+        if manner != self.current.0 {
+            self.current = (manner, now_s);
+        }
+        let settle = if manner == Manner::Route {
+            RESUMED_AFTER_S
+        } else {
+            SETTLE_S
+        };
+        let settled = now_s - self.current.1 >= settle - 1e-9;
+        (settled && manner != self.announced).then(|| {
+            self.announced = manner;
+            manner
+        })
+    }
+
+    /// Held for `replan_after_s` by movers: the disc they stand in, once per hold.
+    fn way_round_due(
+        &mut self,
+        now_s: f64,
+        leader: DVec2,
+        pace: f64,
+        movers: &[Mover],
+    ) -> Option<(DVec2, f64)> {
+        let since = self.held_since_s?;
+        if now_s - since < self.spec.replan_after_s || self.avoided_s.is_some_and(|t| t >= since) {
+            return None;
+        }
+        self.avoided_s = Some(now_s);
+        let reach = pace * self.spec.horizon_s + 2.0;
+        let near: Vec<DVec2> = movers
+            .iter()
+            .map(|m| m.track.position)
+            .filter(|p| p.distance(leader) <= reach)
+            .collect();
+        if near.is_empty() {
+            return None;
+        }
+        let centre = near.iter().copied().sum::<DVec2>() / near.len() as f64;
+        let radius = near.iter().map(|p| p.distance(centre)).fold(0.0, f64::max)
+            + self.spec.personal_space_m
+            + MIN_RADIUS_M;
+        Some((centre, radius))
+    }
+}
+
+/// The manner a choice shows.
+fn manner_of(choice: &Choice, target: f64, held: bool) -> Manner {
+    match choice.candidate {
+        Candidate::Back => Manner::SteppingBack,
+        _ if held => Manner::Waiting,
+        _ if choice.clears && target > 0.0 => Manner::ClearingWay,
+        Candidate::Hurry => Manner::ClearingWay,
+        _ => Manner::Route,
+    }
+}

@@ -3,6 +3,7 @@
 //! followers in slot order (`line_order`), followers sent round what holds them
 //! (`detour`).
 
+pub(super) mod desk;
 pub(super) mod detour;
 pub(super) mod line_order;
 pub(super) mod spacing;

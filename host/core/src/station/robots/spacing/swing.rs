@@ -1,20 +1,19 @@
 //! Whether a follower's next motion swings its body clear of the robots beside it, judged
-//! by rolling out the firmware's own control code (`control_core`: the detour's law or
-//! the L-φ law, through the controller's limits) from where it stands. A differential
-//! drive does not move its centre along a straight line to where it is sent: it backs and
-//! swings round, and every contact between robots since 2026-12-04 came from a body
-//! moving otherwise than the straight line the station assumed.
+//! with the fleet's one forward model (`station::model`: the firmware's own detour law or
+//! L-φ law, through its limits) from where it stands. A differential drive does not move
+//! its centre along a straight line to where it is sent: it backs and swings round, and
+//! a body moving otherwise than the straight line the station assumed touched another.
 
-use control_core::controller::{self, DETOUR_GAIN, DETOUR_SPEED};
+use control_core::controller::{DETOUR_GAIN, DETOUR_SPEED};
 use control_core::follower::{self, SlotRef};
-use control_core::{math, Pose, Twist};
+use control_core::{Pose, Twist};
 use glam::DVec2;
 
 use super::{slot_of, Body, Fleet, KEEP_M};
+use crate::station::model::{Robot, STEP_S};
 
-/// A step aside is rolled out this long, in steps of a control period, s.
+/// A step aside is rolled out this long, s.
 const STEP_ROLLOUT_S: f32 = 3.0;
-const STEP_DT: f32 = 0.1;
 /// A standing follower's setting off is rolled out this long, s, against the robots
 /// within this beyond touching distance, m.
 const SET_OFF_ROLLOUT_S: f32 = 1.0;
@@ -82,19 +81,14 @@ fn swings_clear(
         .filter(|r| r.id != stepper.id && watches(r))
         .map(|r| (r.position, r.position.distance(stepper.position).min(reach)))
         .collect();
-    let (x, y) = (stepper.position.x as f32, stepper.position.y as f32);
-    let mut pose = Pose::new(x, y, stepper.heading as f32);
-    let mut twist = Twist::ZERO;
-    for k in 0..(horizon_s / STEP_DT) as usize {
-        let Some(asked) = law(k as f32 * STEP_DT, &pose) else {
+    let mut robot = Robot::new(stepper.position, stepper.heading, 0.0);
+    let dt = STEP_S as f32;
+    for k in 0..(horizon_s / dt) as usize {
+        let Some(asked) = law(k as f32 * dt, &robot.pose) else {
             return true;
         };
-        twist = controller::limit(&fleet.robot.limits, twist, asked, STEP_DT);
-        let (s, c) = math::sin_cos(pose.heading + 0.5 * twist.omega * STEP_DT);
-        pose.x += twist.v * STEP_DT * c;
-        pose.y += twist.v * STEP_DT * s;
-        pose.heading = math::wrap_angle(pose.heading + twist.omega * STEP_DT);
-        let centre = DVec2::new(pose.x as f64, pose.y as f64);
+        robot.drive(&fleet.robot, asked, dt);
+        let centre = robot.position();
         if least
             .iter()
             .any(|(p, least)| centre.distance(*p) < least - STEP_SLACK_M)

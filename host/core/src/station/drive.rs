@@ -1,0 +1,225 @@
+//! The leader's drive: its pace among what moves (`movers`, from one ranking over the
+//! fleet's forward model), passed to guidance as a value, then its command capped short
+//! of the other robots and the leader's state to every follower.
+
+use glam::DVec2;
+use protocol::messages::{Message, VelocityCommand};
+use protocol::{units, Address};
+
+use super::model::{self, Goal, LeaderStart, Path, Robot};
+use super::movers::pace::Context;
+use super::movers::prediction::Mover;
+use super::movers::{Candidate, Decision, Manner};
+use super::robots::spacing;
+use super::{BaseStation, LeaderEstimate, Look, ShapeChange, StationEvent};
+use crate::planner::{Pace, PlannerEvent};
+
+/// A command shows in the leader's speed about this late: the radio's 50 ms, up to a
+/// period before the robot's loop takes it, the motors' lag, s.
+const COMMAND_LAG_S: f64 = 0.3;
+/// Braking for someone (the pace under the speed now by this), as hard as the robot
+/// allows, not at the planner's comfort, m/s.
+const BRAKING_BELOW_MPS: f64 = 0.05;
+
+impl BaseStation {
+    /// The leader's pace among `movers` this period (`crowded`: whether they crowd its
+    /// way), and what it announces.
+    pub(super) fn pace_among_movers(
+        &mut self,
+        leader: &LeaderEstimate,
+        look: &Look,
+        movers: &[Mover],
+        crowded: bool,
+        (bodies, following): super::Robots<'_>,
+        now_ms: u32,
+    ) -> Decision {
+        let followers = self.model_followers(bodies, following);
+        let path = Path::new(&look.ahead);
+        let fleet = model::Fleet {
+            leader: LeaderStart {
+                pose: leader.pose,
+                v: leader.v,
+                commanded: self.last_command.0,
+                lag_s: COMMAND_LAG_S,
+                accel: self.resume_accel(),
+                brake: self.cfg.yield_brake.max(self.cfg.planner.max_accel),
+            },
+            followers: &followers,
+            ahead: &path,
+            behind: &look.behind,
+            formation: self.guidance.formation(),
+            robot: &self.cfg.robot,
+        };
+        let spec = self.movers.spec();
+        let ctx = Context {
+            pace: self.cfg.planner.max_speed,
+            hurry: self.cfg.follower_speed,
+            reverse: self.cfg.reverse_speed,
+            footprint: self.guidance.formation().spec().footprint,
+            horizon_s: spec.horizon_s,
+            passing_share: spec.passing_share,
+            crowded,
+        };
+        let now_s = now_ms as f64 / 1000.0;
+        let decision = self.movers.decide(now_s, &fleet, movers, &ctx, &self.world);
+        if let Some(manner) = decision.announce {
+            self.announce(manner, movers.len(), now_ms);
+        }
+        if let Some((at, radius)) = decision.avoid {
+            let from = leader.pose.position;
+            self.guidance.avoid(at, radius, from, now_s, &self.world);
+        }
+        decision
+    }
+
+    /// Each follower in the model: as estimated now, making for what it was told last
+    /// period (a point), else its slot; one not following stands.
+    fn model_followers(
+        &self,
+        bodies: &[spacing::Body],
+        following: &[spacing::Body],
+    ) -> Vec<(Robot, Goal)> {
+        self.fleet
+            .followers
+            .iter()
+            .enumerate()
+            .filter_map(|(k, id)| {
+                let b = bodies.iter().find(|b| b.id == *id)?;
+                let goal = match self.orders.get(id) {
+                    Some(point) => Goal::Point(*point),
+                    None if following.iter().any(|f| f.id == *id) => Goal::Slot(k),
+                    None => Goal::Hold,
+                };
+                Some((Robot::new(b.position, b.heading, b.v), goal))
+            })
+            .collect()
+    }
+
+    /// One event when the fleet's manner among movers changes, one when it ends.
+    fn announce(&mut self, manner: Manner, movers: usize, now_ms: u32) {
+        let at_ms = now_ms;
+        let (event, words) = match manner {
+            Manner::Waiting => (StationEvent::Yielding { at_ms }, "waits for people to pass"),
+            Manner::SteppingBack => (
+                StationEvent::SteppingBack { at_ms },
+                "steps back out of someone's way",
+            ),
+            Manner::ClearingWay => (
+                StationEvent::ClearingWay { at_ms },
+                "goes on out of someone's way",
+            ),
+            Manner::Route => (StationEvent::PaceResumed { at_ms }, "goes on at its pace"),
+        };
+        tracing::info!(movers, "the leader {words}");
+        self.events.push(event);
+    }
+
+    /// The planner's pace from the movers' `decision` and the followers' `look`: going on
+    /// to clear someone's way, the leader does not wait for its followers, nor slow for a
+    /// shape change.
+    fn pace_of(&self, leader: &LeaderEstimate, look: &Look, d: &Decision) -> (Pace, ShapeChange) {
+        let share = d.target.max(0.0) / self.cfg.planner.max_speed;
+        let clearing = d.choice.clears && d.target > 0.0 || d.choice.candidate == Candidate::Hurry;
+        let braking = d.target < leader.v - BRAKING_BELOW_MPS;
+        let pace = Pace {
+            scale: if clearing {
+                share
+            } else {
+                look.waiting.min(share)
+            },
+            brake: braking.then_some(self.cfg.yield_brake),
+            accel: d.among_movers.then_some(self.resume_accel()),
+            held: d.held,
+        };
+        let change = if clearing {
+            ShapeChange::Ignored
+        } else {
+            ShapeChange::Slows
+        };
+        (pace, change)
+    }
+
+    /// Drives the leader this period: its pace, guidance's command (backing where the
+    /// decision says so), and what happened on the way.
+    pub(super) fn drive_leader(
+        &mut self,
+        leader: &LeaderEstimate,
+        look: &Look,
+        decision: &Decision,
+        bodies: &[spacing::Body],
+        now_ms: u32,
+    ) {
+        let now_s = now_ms as f64 / 1000.0;
+        let (pace, change) = self.pace_of(leader, look, decision);
+        let drive = self
+            .guidance
+            .drive(now_s, leader.pose, pace, change, &self.world);
+        self.report_planner(&drive.events, now_ms);
+        if drive
+            .events
+            .iter()
+            .any(|e| matches!(e, PlannerEvent::NoRoute(_)))
+        {
+            self.drop_lanes();
+        }
+        let command = if decision.choice.candidate == Candidate::Back {
+            (-self.cfg.reverse_speed, 0.0)
+        } else {
+            (drive.v, drive.omega)
+        };
+        self.command_leader(leader, command, bodies, look.blend, now_ms);
+    }
+
+    /// How hard the leader speeds up among movers: as hard as its followers may, not at
+    /// the planner's comfort (held again and again in a crowd, a leader creeping back to
+    /// its pace took half as long again as the empty plaza).
+    pub(super) fn resume_accel(&self) -> f64 {
+        self.cfg.follower_accel.max(self.cfg.planner.max_accel)
+    }
+
+    /// The leader holds (the fleet is not ready, or parked): told to stand, its state to
+    /// every follower.
+    pub(super) fn hold_leader(&mut self, leader: &LeaderEstimate, now_ms: u32) {
+        self.last_command = (0.0, 0.0);
+        let hold = Message::VelocityCommand(VelocityCommand {
+            v_mm_s: 0,
+            omega_mrad_s: 0,
+        });
+        self.send(Address::Robot(self.cfg.leader), now_ms, &hold);
+        self.broadcast_leader_state(leader, (0.0, 0.0), 0.0, now_ms);
+    }
+
+    /// The leader's command (`v` capped short of the other robots, `bodies`: [`spacing`]),
+    /// then the leader's state to every follower.
+    fn command_leader(
+        &mut self,
+        leader: &LeaderEstimate,
+        (v, omega): (f64, f64),
+        bodies: &[spacing::Body],
+        blend: f64,
+        now_ms: u32,
+    ) {
+        let body = leader.body(self.cfg.leader);
+        let footprint = self.guidance.formation().spec().footprint;
+        let v = spacing::cap_leader(&body, v, bodies, footprint, self.cfg.yield_brake);
+        self.last_command = (v, omega);
+        let command = Message::VelocityCommand(VelocityCommand {
+            v_mm_s: units::to_milli_i16(v as f32).unwrap_or(0),
+            omega_mrad_s: units::to_milli_i16(omega as f32).unwrap_or(0),
+        });
+        self.send(Address::Robot(self.cfg.leader), now_ms, &command);
+        self.broadcast_leader_state(leader, (v, omega), blend, now_ms);
+    }
+}
+
+/// The robots' positions for the movers' prediction: the leader first.
+pub(super) fn positions(leader: DVec2, bodies: &[spacing::Body], leader_id: u16) -> Vec<DVec2> {
+    std::iter::once(leader)
+        .chain(
+            bodies
+                .iter()
+                .filter(|b| b.id != leader_id)
+                .map(|b| b.position),
+        )
+        .collect()
+}
