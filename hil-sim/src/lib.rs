@@ -14,10 +14,12 @@
 //! - [`brain`]: the control code a robot runs, natively or in [`qemu`];
 //! - [`faults`]: faults and attacks injected on schedule; [`observer`]: what the judge
 //!   hears on the air when the station is another process;
-//! - [`metrics`]: what a run measured; [`report`], [`plot`], [`trace`], [`recording`]: its
+//! - [`metrics`]: what a run measured; [`exposure`]: the parked fleet a moving one is
+//!   judged against among oblivious movers; [`report`], [`plot`], [`trace`], [`recording`]: its
 //!   report, figure, CSV trace and MCAP; [`run`]: one run, start to report.
 
 pub mod brain;
+pub mod exposure;
 pub mod faults;
 pub mod metrics;
 pub mod movers;

@@ -405,6 +405,11 @@ impl Recorder {
         }
     }
 
+    /// The robots' footprint radius, m.
+    pub fn footprint(&self) -> f64 {
+        self.footprint
+    }
+
     fn contact(&mut self, pair: (usize, usize), now: bool) {
         if now {
             if self.touching.insert(pair) {
@@ -562,6 +567,7 @@ mod tests {
             velocity: DVec2::new(1.0, 0.0),
             heading: 0.0,
             shape: MoverShape::Circle { radius: 0.25 },
+            oblivious: true,
         }
     }
 

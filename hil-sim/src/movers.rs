@@ -72,6 +72,8 @@ pub struct MoverState {
     /// Which way it faces (its way, for a rectangle), rad.
     pub heading: f64,
     pub shape: MoverShape,
+    /// It keeps to its way whatever is in it: its way does not depend on the robots.
+    pub oblivious: bool,
 }
 
 impl MoverState {
@@ -299,6 +301,7 @@ impl Movers {
                 velocity: m.velocity,
                 heading: m.heading,
                 shape: m.shape,
+                oblivious: m.behavior == Behavior::Oblivious,
             })
     }
 
@@ -631,6 +634,7 @@ mod tests {
                 length: 4.0,
                 width: 2.0,
             },
+            oblivious: true,
         };
         // Along y it is 4 m long, across 2 m wide.
         assert!((car.distance(DVec2::new(10.0, 3.0)) - 1.0).abs() < 1e-9);

@@ -158,6 +158,13 @@ pub struct MoversReport {
     /// The same scenario and seed with nobody on the site: its time to goal (null: not
     /// run, or the goal not reached).
     pub time_to_goal_empty_s: Option<f64>,
+    /// Contacts with movers per robot-hour of the run (schema 4).
+    pub contacts_per_robot_hour: f64,
+    /// The same for robots standing, for the whole run, where this run's robots were
+    /// (once a second), walked into by the movers who keep to their way whatever is in
+    /// it: the parked fleet this one is judged against (`exposure.rs`); null without such
+    /// movers (schema 4).
+    pub parked_contacts_per_robot_hour: Option<f64>,
     /// The first 100 contacts, one by one.
     pub contacts: Vec<crate::metrics::MoverContact>,
     /// How well the station's tracks matched the movers (null without movers).
@@ -242,9 +249,11 @@ impl TrackingReport {
 
 impl MoversReport {
     /// The measures of a run (`time_to_goal_empty_s` is filled by whoever ran the empty
-    /// site).
-    pub fn of(rec: &Recorder, count: usize) -> Self {
+    /// site); `robots`: how many, over `sim_time_s`.
+    pub fn of(rec: &Recorder, count: usize, robots: usize, sim_time_s: f64) -> Self {
         let m = &rec.movers;
+        let contacts = m.drove_into + m.walked_into_standing + m.walked_into_braking;
+        let hours = robots as f64 * sim_time_s / 3600.0;
         Self {
             count,
             contacts_moving: m.contacts_moving,
@@ -260,20 +269,17 @@ impl MoversReport {
             intrusion_by_robot_s: m.intrusion_by_robot_s.clone(),
             freezing_s: m.freezing_s,
             time_to_goal_empty_s: None,
+            contacts_per_robot_hour: if hours > 0.0 {
+                contacts as f64 / hours
+            } else {
+                0.0
+            },
+            parked_contacts_per_robot_hour: crate::exposure::parked_where_it_went(
+                &rec.samples,
+                rec.footprint(),
+            ),
             contacts: m.contacts.clone(),
             tracking: None,
-        }
-    }
-
-    /// Contacts per robot-hour over a run of `sim_time_s` with `robots` robots: what a
-    /// parked fleet's rate is held against.
-    pub fn contacts_per_robot_hour(&self, robots: usize, sim_time_s: f64) -> f64 {
-        let hours = robots as f64 * sim_time_s / 3600.0;
-        let n = self.drove_into + self.walked_into_standing + self.walked_into_braking;
-        if hours > 0.0 {
-            n as f64 / hours
-        } else {
-            0.0
         }
     }
 
@@ -488,7 +494,7 @@ pub fn build_report(
                 rec,
                 facts.roles.iter().position(|(_, r)| *r == Role::Leader),
             ),
-            ..MoversReport::of(rec, facts.movers)
+            ..MoversReport::of(rec, facts.movers, facts.roles.len(), facts.sim_time_s)
         },
     }
 }

@@ -85,7 +85,6 @@ impl Sums {
 /// towards the goal (or along its heading without one), for `duration_s`.
 pub fn run(scenario: &Scenario, seed: u64, duration_s: f64) -> TrackingFigures {
     let site = scenario.build_site();
-    let map = scenario.build_map();
     let mut movers = Movers::new(scenario, &site, seed);
     let scanner = Scanner::new(scenario);
     let mut tracker = Tracker::new(scenario.yielding.personal_space_m);
@@ -114,7 +113,7 @@ pub fn run(scenario: &Scenario, seed: u64, duration_s: f64) -> TrackingFigures {
         let states: Vec<MoverState> = movers.states(t).collect();
         let hits = scanner.scan(at, &site, &states);
         let now_ms = (t * 1000.0).round() as u32;
-        tracker.observe(&hits, at, way.to_angle(), &map, &[at], now_ms);
+        tracker.observe(&hits, at, now_ms);
         let tracks = tracker
             .views(now_ms)
             .filter(|v| v.motion == Motion::Moving)

@@ -21,6 +21,8 @@ pub struct Run {
     pub static_contacts: u64,
     pub intrusion_s: f64,
     pub robot_hours: f64,
+    /// Robots standing where these were, per robot-hour (oblivious movers only).
+    pub parked_rate: Option<f64>,
     /// The robot's speed at each listed walked-into contact, m/s.
     pub walked_speeds: Vec<f64>,
     /// The report without its wall time: equal texts, identical runs.
@@ -59,6 +61,7 @@ impl Run {
             static_contacts: u(&r["collisions"]).saturating_sub(drove_into + walked_into),
             intrusion_s: m["intrusion_s"].as_f64().unwrap_or(0.0),
             robot_hours: robots as f64 * r["sim_time_s"].as_f64().unwrap_or(0.0) / 3600.0,
+            parked_rate: m["parked_contacts_per_robot_hour"].as_f64(),
             walked_speeds,
             text: r.to_string(),
         })
@@ -79,6 +82,8 @@ pub struct Figures {
     pub walked_into_worlds: usize,
     pub static_contact_worlds: usize,
     pub contacts_per_robot_hour: f64,
+    /// Robots standing where the fleet went, per robot-hour, over the runs that have it.
+    pub parked_per_robot_hour: Option<f64>,
     /// The robot's speed at walked-into contacts: p50, p95, max, m/s.
     pub walked_speed: Option<(f64, f64, f64)>,
     pub intrusion_s: f64,
@@ -92,6 +97,11 @@ impl Figures {
         let speeds: Vec<f64> = runs.iter().flat_map(|r| r.walked_speeds.clone()).collect();
         let contacts: u64 = runs.iter().map(|r| r.drove_into + r.walked_into).sum();
         let hours: f64 = runs.iter().map(|r| r.robot_hours).sum();
+        let parked: Vec<(f64, f64)> = runs
+            .iter()
+            .filter_map(|r| Some((r.parked_rate? * r.robot_hours, r.robot_hours)))
+            .collect();
+        let parked_hours: f64 = parked.iter().map(|p| p.1).sum();
         let intrusion: Vec<f64> = runs.iter().map(|r| r.intrusion_s).collect();
         let ratios: Vec<f64> = runs.iter().filter_map(|r| r.ratio()).collect();
         Self {
@@ -106,6 +116,8 @@ impl Figures {
             } else {
                 0.0
             },
+            parked_per_robot_hour: (parked_hours > 0.0)
+                .then(|| parked.iter().map(|p| p.0).sum::<f64>() / parked_hours),
             walked_speed: quantile(&speeds, 0.5)
                 .zip(quantile(&speeds, 0.95))
                 .map(|(a, b)| {
@@ -137,6 +149,10 @@ fn speeds(s: Option<(f64, f64, f64)>) -> String {
     })
 }
 
+fn rate(r: Option<f64>) -> String {
+    r.map_or("—".to_string(), |r| format!("{r:.2}"))
+}
+
 fn ratio(r: Option<(f64, f64)>) -> String {
     r.map_or("—".to_string(), |(m, h)| format!("{m:.2} ± {h:.2}"))
 }
@@ -153,7 +169,7 @@ fn pair(a: String, b: String) -> String {
 /// The markdown table of paired runs, a row per suite in `order` and one for all.
 pub fn paired_table(order: &[&str], pairs: &[(String, Run, Run)]) -> String {
     let mut out = String::from(
-        "| suite | worlds | goals | drove into | contact while moving | walked into | walked-into speed p50 / p95 / max, m/s | contacts per robot-hour | static contacts | mean intrusion, s | paired Δ intrusion (95 %) | time × empty | reports changed |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| suite | worlds | goals | drove into | contact while moving | walked into | walked-into speed p50 / p95 / max, m/s | contacts per robot-hour | parked where it went, per robot-hour | static contacts | mean intrusion, s | paired Δ intrusion (95 %) | time × empty | reports changed |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let rows = order.iter().map(|s| (s.to_string(), Some(*s)));
     for (label, suite) in rows.chain(std::iter::once(("all".to_string(), None))) {
@@ -178,7 +194,7 @@ fn row(label: &str, here: &[&(String, Run, Run)]) -> String {
     let changed = here.iter().filter(|p| p.1.text != p.2.text).count();
     let n = a.n;
     format!(
-        "| {label} | {n} | {} | {} | {} | {} | {} | {} | {} | {} | {:+.3} ± {:.3} | {} | {changed} |\n",
+        "| {label} | {n} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:+.3} ± {:.3} | {} | {changed} |\n",
         pair(a.goals.to_string(), b.goals.to_string()),
         pair(pct(a.drove_into_worlds, n), pct(b.drove_into_worlds, n)),
         pair(pct(a.moving_contact_worlds, n), pct(b.moving_contact_worlds, n)),
@@ -188,6 +204,7 @@ fn row(label: &str, here: &[&(String, Run, Run)]) -> String {
             format!("{:.2}", a.contacts_per_robot_hour),
             format!("{:.2}", b.contacts_per_robot_hour)
         ),
+        pair(rate(a.parked_per_robot_hour), rate(b.parked_per_robot_hour)),
         pair(a.static_contact_worlds.to_string(), b.static_contact_worlds.to_string()),
         pair(format!("{:.3}", a.intrusion_s), format!("{:.3}", b.intrusion_s)),
         mean(&diffs),

@@ -33,9 +33,8 @@
 //!   and the marks it left while it stood are released. A new small track is marked only
 //!   once it is judged still (a person first seen walking leaves no mark); a new large
 //!   one at once, as before tracking (a wall, a van across the street).
-//! - **Lanes**: a person who stopped mid-way on their own (in the open, alone) will walk on
-//!   the way they were walking; [`LANE_M`] of it is marked ahead of them, so the route
-//!   passes behind them. The station gives lanes up where they leave no route.
+//! - **Ways**: a track keeps the way it last walked ([`TrackView::way`]); what that means
+//!   once someone stops (the way they will walk on) is the station's to decide.
 
 use std::collections::VecDeque;
 
@@ -43,7 +42,6 @@ use glam::DVec2;
 use serde::Serialize;
 
 use crate::geometry::cells::{cell_of, CellIndex};
-use crate::geometry::map::Map;
 
 /// Hits this close belong to one cluster, m.
 pub const LINK_M: f64 = 0.45;
@@ -99,26 +97,6 @@ pub const LARGE_M: f64 = 2.0;
 /// A track that moved and is no longer than this is a person (or a cyclist end on) and
 /// gets the personal space round its marks, m.
 pub const PERSON_M: f64 = 1.0;
-/// A person who stopped mid-way is passed behind, not in front: their way on is marked
-/// this far ahead of them, m, this much round the line, m, in steps of this, m. On
-/// `standing-person-oblivious-seed1` a person stood 20 s in the middle of the street and
-/// walked on to the kerb the leader was passing in front of them.
-pub const LANE_M: f64 = 3.0;
-pub const LANE_PAD_M: f64 = 0.3;
-const LANE_STEP_M: f64 = 0.2;
-/// Only for a person who stopped this far from every robot: one who stops nearer is most
-/// likely letting the robots by (a lane marked across their way would hold the robots
-/// for them while they wait for the robots), m.
-pub const WAITING_M: f64 = 5.0;
-/// Nor for one who stopped this near someone else moving: held up in a crowd, their way
-/// on is the crowd's, and lanes of the held-up would wall a plaza off, m.
-pub const HELD_UP_M: f64 = 3.0;
-/// Nor for one who stopped within this of a wall or a kerb: they have arrived (at a door,
-/// at the kerb they crossed to), m.
-pub const OPEN_M: f64 = 2.0;
-/// Someone who stops ahead of the leader within the fleet's breadth and this is in its
-/// way, however near: one letting the robots by stops beside their way, m.
-pub const IN_THE_WAY_M: f64 = 1.0;
 /// Most tracks kept (the oldest unseen go first).
 pub const MAX_TRACKS: usize = 512;
 /// People walking side by side, or passing each other, give one cluster (their hits
@@ -194,12 +172,8 @@ pub struct Track {
     pub motion: Motion,
     /// It was judged moving once (a person, a cyclist, a vehicle).
     pub moved: bool,
-    /// The way it last walked, judged moving (a unit vector), and whether it stopped on
-    /// its own ([`Near::alone`]).
+    /// The way it last walked, judged moving (a unit vector).
     way: Option<DVec2>,
-    stopped_alone: Option<bool>,
-    /// Its lane was given up: the robots found no way behind them.
-    lane_dropped: bool,
     /// When it was first and last seen, station ms.
     pub born_ms: u32,
     pub seen_ms: u32,
@@ -227,6 +201,8 @@ pub struct TrackView {
     pub motion: Motion,
     /// Moved once and no larger than a person.
     pub person: bool,
+    /// The way it last walked, judged moving (a unit vector).
+    pub way: Option<DVec2>,
 }
 
 impl TrackView {
@@ -249,6 +225,7 @@ impl TrackView {
             radius: 0.25,
             motion: Motion::Moving,
             person: true,
+            way: Some(DVec2::new(v.0, v.1).normalize_or_zero()),
         }
     }
 }
@@ -264,8 +241,6 @@ impl Track {
             motion: Motion::New,
             moved: false,
             way: None,
-            stopped_alone: None,
-            lane_dropped: false,
             born_ms: now_ms,
             seen_ms: now_ms,
             at_ms: now_ms,
@@ -320,15 +295,8 @@ impl Track {
             radius: 0.5 * self.extent,
             motion: self.motion,
             person: self.is_person(),
+            way: self.way,
         }
-    }
-
-    /// The way a person who stopped would walk on, where it is marked: they stopped on
-    /// their own ([`Near::alone`]), and passing behind them was not given up.
-    fn lane(&self) -> Option<DVec2> {
-        let stood = self.motion == Motion::Still && self.is_person();
-        let marked = stood && self.stopped_alone == Some(true) && !self.lane_dropped;
-        self.way.filter(|_| marked)
     }
 
     fn is_person(&self) -> bool {
@@ -344,7 +312,6 @@ impl Track {
     fn take(
         &mut self,
         cluster: Cluster,
-        near: &Near<'_>,
         base: Option<&Scan>,
         now: &Surface,
         now_ms: u32,
@@ -363,10 +330,6 @@ impl Track {
         self.extent = cluster.extent;
         if self.motion == Motion::Moving && self.speed() > MOVING_MPS {
             self.way = Some(DVec2::new(self.x.v, self.y.v).normalize());
-            self.stopped_alone = None;
-            self.lane_dropped = false;
-        } else if self.way.is_some() && self.stopped_alone.is_none() {
-            self.stopped_alone = Some(near.alone(self.id, cluster.centre));
         }
         let novelty = base.and_then(|b| self.novelty(&cluster.hits, b, now));
         self.history.push_back((now_ms, cluster.hits));
@@ -429,41 +392,6 @@ impl Track {
             self.motion = Motion::Still;
         }
         (self.motion != before).then_some(self.motion)
-    }
-}
-
-/// What was round a track when it stopped.
-struct Near<'a> {
-    /// The site's map.
-    map: &'a Map,
-    /// Where the leader is and which way it faces (a unit vector).
-    leader: (DVec2, DVec2),
-    /// The robots.
-    fleet: &'a [DVec2],
-    /// The tracks judged moving, by id.
-    moving: &'a [(u32, DVec2)],
-}
-
-impl Near<'_> {
-    /// Whether track `id`, stopping at `at`, stopped mid-way for reasons of its own: in
-    /// the open ([`OPEN_M`]), far from every robot ([`WAITING_M`]) unless in the leader's
-    /// way ([`Self::in_the_way`]), and far from anyone else moving ([`HELD_UP_M`]).
-    fn alone(&self, id: u32, at: DVec2) -> bool {
-        self.map.clearance(at, OPEN_M) >= OPEN_M
-            && (self.fleet.iter().all(|r| r.distance(at) > WAITING_M) || self.in_the_way(at))
-            && self
-                .moving
-                .iter()
-                .all(|(other, p)| *other == id || p.distance(at) > HELD_UP_M)
-    }
-
-    /// Whether `at` lies ahead of the leader within the fleet's breadth (and
-    /// [`IN_THE_WAY_M`] more): someone who stops there is not letting the robots by.
-    fn in_the_way(&self, at: DVec2) -> bool {
-        let (origin, ahead) = self.leader;
-        let side = |p: DVec2| (p - origin).perp_dot(ahead).abs();
-        let breadth = self.fleet.iter().map(|r| side(*r)).fold(0.0, f64::max);
-        (at - origin).dot(ahead) > 0.0 && side(at) <= breadth + IN_THE_WAY_M
     }
 }
 
@@ -698,6 +626,8 @@ pub struct Observation {
     pub marks: Vec<(usize, DVec2, MarkTag)>,
     /// Tracks judged moving: the marks they left go.
     pub released: Vec<u32>,
+    /// The tracks that took a cluster of this scan (seen in it).
+    pub seen: Vec<u32>,
 }
 
 /// Whose a mark is and how much room it keeps beyond its cell.
@@ -705,7 +635,7 @@ pub struct Observation {
 pub struct MarkTag {
     pub track: u32,
     pub pad: f64,
-    /// A mark of the way a person who stopped would walk on (see [`LANE_M`]).
+    /// A mark of the way a person who stopped would walk on (the station's lanes).
     pub lane: bool,
 }
 
@@ -743,18 +673,9 @@ impl Tracker {
         }
     }
 
-    /// One scan at `now_ms` taken from `origin` (the leader, facing `heading`): `hits` the
-    /// map does not explain (site frame). `map`: the site's; `fleet`: where the robots are
-    /// (the scanner's among them).
-    pub fn observe(
-        &mut self,
-        hits: &[DVec2],
-        origin: DVec2,
-        heading: f64,
-        map: &Map,
-        fleet: &[DVec2],
-        now_ms: u32,
-    ) -> Observation {
+    /// One scan at `now_ms` taken from `origin` (the leader): `hits` the map does not
+    /// explain (site frame).
+    pub fn observe(&mut self, hits: &[DVec2], origin: DVec2, now_ms: u32) -> Observation {
         let mut out = Observation::default();
         self.age(now_ms);
         let surface = Surface::of(hits, origin);
@@ -768,24 +689,12 @@ impl Tracker {
         }
         let mut pairs = self.associate(&clusters, now_ms);
         pairs.extend(self.revive(&clusters, &pairs, now_ms));
-        let moving: Vec<(u32, DVec2)> = self
-            .tracks
-            .iter()
-            .filter(|t| t.motion == Motion::Moving)
-            .map(|t| (t.id, t.predicted(now_ms).0))
-            .collect();
-        let near = Near {
-            map,
-            leader: (origin, DVec2::from_angle(heading)),
-            fleet,
-            moving: &moving,
-        };
         let mut clusters: Vec<Option<Cluster>> = clusters.into_iter().map(Some).collect();
         for (t, c) in pairs {
             let cluster = clusters[c].take().expect("each cluster taken once");
             let had_moved = self.tracks[t].moved;
             let base = base.map(|i| &self.scans[i]);
-            let changed = self.tracks[t].take(cluster.clone(), &near, base, &surface, now_ms);
+            let changed = self.tracks[t].take(cluster.clone(), base, &surface, now_ms);
             if let Some(motion) = changed {
                 let v = self.tracks[t].view(now_ms);
                 tracing::debug!(
@@ -805,6 +714,7 @@ impl Tracker {
             if self.tracks[t].moved && !had_moved {
                 self.counts.moved += 1;
             }
+            out.seen.push(self.tracks[t].id);
             self.mark(t, &cluster, &mut out);
         }
         for cluster in clusters.into_iter().flatten() {
@@ -825,19 +735,6 @@ impl Tracker {
             self.scans.pop_front();
         }
         out
-    }
-
-    /// Gives up the lanes marked now (no way behind the people who stopped): the ids of
-    /// their tracks, whose lane marks must go.
-    pub fn drop_lanes(&mut self) -> Vec<u32> {
-        let mut ids = Vec::new();
-        for t in &mut self.tracks {
-            if t.lane().is_some() {
-                t.lane_dropped = true;
-                ids.push(t.id);
-            }
-        }
-        ids
     }
 
     /// Ends the tracks not seen for [`LOST_MS`]; a person's is kept [`REVIVE_MS`] more.
@@ -1000,18 +897,6 @@ impl Tracker {
                 .zip(&cluster.hits)
                 .map(|(i, h)| (*i, *h, tag)),
         );
-        if let Some(way) = track.lane() {
-            let lane = MarkTag {
-                track: track.id,
-                pad: LANE_PAD_M,
-                lane: true,
-            };
-            let steps = (LANE_M / LANE_STEP_M).round() as usize;
-            out.marks.extend((1..=steps).map(|k| {
-                let at = cluster.centroid + way * (k as f64 * LANE_STEP_M);
-                (usize::MAX, at, lane)
-            }));
-        }
     }
 
     /// Every track, predicted to `now_ms`.
@@ -1039,10 +924,7 @@ impl Tracker {
 
 #[cfg(test)]
 mod tests {
-    use std::f64::consts::FRAC_PI_2;
-
     use super::*;
-    use crate::geometry::Obstacle;
 
     /// A person's hits at `at` as a scanner at the origin sees them: the near side of a
     /// 0.25 m disc.
@@ -1053,76 +935,18 @@ mod tests {
             .collect()
     }
 
-    /// Someone walks 2.5 s along -y at 1.2 m/s to (10, 0) and stands there 8 s, scanned
-    /// at 10 Hz by the leader at the origin facing `heading`, a robot at `fleet`: the
-    /// lane marks of the last scan.
-    fn lane_after_a_stop(map: &Map, heading: f64, fleet: DVec2) -> (Tracker, Vec<DVec2>) {
-        let mut tracker = Tracker::new(0.8);
-        let mut last = Observation::default();
-        for k in 0..=105 {
-            let t = k as f64 * 0.1;
-            let at = DVec2::new(10.0, (3.0 - 1.2 * t).max(0.0));
-            last = tracker.observe(&person_at(at), DVec2::ZERO, heading, map, &[fleet], k * 100);
-        }
-        let lane = last
-            .marks
-            .iter()
-            .filter(|m| m.2.lane)
-            .map(|m| m.1)
-            .collect();
-        (tracker, lane)
-    }
-
-    #[test]
-    fn a_person_who_stops_in_the_open_leaves_their_way_on_marked() {
-        let open = Map::new(vec![]);
-        let (mut tracker, lane) = lane_after_a_stop(&open, 0.0, DVec2::ZERO);
-        assert!(!lane.is_empty(), "no lane marked");
-        // Ahead of them on the way they walked (from their hits' centroid, on the
-        // scanner's side of them), up to LANE_M.
-        let on_the_way = |p: &DVec2| (p.x - 10.0).abs() < 0.3 && p.y < 0.0 && p.y > -LANE_M - 0.1;
-        assert!(lane.iter().all(on_the_way), "{lane:?}");
-        // Given up (no route behind them), it is not marked again while they stand.
-        assert_eq!(tracker.drop_lanes().len(), 1);
-        let seen = tracker.observe(
-            &person_at(DVec2::new(10.0, 0.0)),
-            DVec2::ZERO,
-            0.0,
-            &open,
-            &[],
-            10_600,
-        );
-        assert!(seen.marks.iter().all(|m| !m.2.lane));
-        assert!(!seen.marks.is_empty(), "their own hits stay marked");
-    }
-
-    #[test]
-    fn no_lane_for_a_person_who_stops_by_a_wall_or_near_the_robots() {
-        let wall = Obstacle::Circle {
-            center: DVec2::new(11.5, 0.0),
-            radius: 0.5,
-        };
-        let (_, lane) = lane_after_a_stop(&Map::new(vec![wall]), 0.0, DVec2::ZERO);
-        assert!(lane.is_empty(), "arrived by a wall: {lane:?}");
-        // A robot 2.2 m from them, the leader facing past them: letting the robots by.
-        let near = DVec2::new(8.0, -1.0);
-        let (_, lane) = lane_after_a_stop(&Map::new(vec![]), FRAC_PI_2, near);
-        assert!(lane.is_empty(), "stopped for the robots: {lane:?}");
-    }
-
     #[test]
     fn two_people_walking_side_by_side_keep_their_own_tracks() {
         // Both walk toward the scanner, 0.6 m apart, one at 1.2 m/s catching up with one
         // at 1.0 m/s from 1.4 m behind: from t = 5.3 s to 8.8 s their hits are one
         // cluster (0.9 m wide).
-        let open = Map::new(vec![]);
         let mut tracker = Tracker::new(0.8);
         for k in 0..=100 {
             let t = k as f64 * 0.1;
             let a = DVec2::new(16.0 - 1.2 * t, 0.3);
             let b = DVec2::new(14.6 - 1.0 * t, -0.3);
             let hits: Vec<DVec2> = person_at(a).into_iter().chain(person_at(b)).collect();
-            tracker.observe(&hits, DVec2::ZERO, 0.0, &open, &[], k * 100);
+            tracker.observe(&hits, DVec2::ZERO, k * 100);
             if t < 2.0 {
                 continue;
             }
@@ -1148,17 +972,9 @@ mod tests {
     }
 
     #[test]
-    fn a_person_who_stops_in_the_leaders_way_is_passed_behind_however_near() {
-        let near = DVec2::new(8.0, -1.0);
-        let (_, lane) = lane_after_a_stop(&Map::new(vec![]), 0.0, near);
-        assert!(!lane.is_empty(), "stopped ahead of the leader: no lane");
-    }
-
-    #[test]
     fn a_person_is_tracked_at_their_centre_and_kept_through_a_gap() {
         // Walking along +y at 1.2 m/s, 6 m ahead of the scanner; out of view (behind
         // someone) from 3 s to 4.5 s.
-        let open = Map::new(vec![]);
         let mut tracker = Tracker::new(0.8);
         let centre = |t: f64| DVec2::new(6.0, -3.0 + 1.2 * t);
         for k in 0..=60 {
@@ -1168,7 +984,7 @@ mod tests {
             } else {
                 person_at(centre(t))
             };
-            tracker.observe(&hits, DVec2::ZERO, 0.0, &open, &[], k * 100);
+            tracker.observe(&hits, DVec2::ZERO, k * 100);
         }
         let views: Vec<TrackView> = tracker.views(6000).collect();
         assert_eq!(views.len(), 1, "{views:?}");

@@ -46,6 +46,7 @@ use fixes::OutgoingFix;
 use fleet::Fleet;
 pub use fleet::{is_following, LeaderEstimate, RobotStatus};
 pub use guidance::{Drive, Guidance, Look, ShapeChange};
+use movers::lanes::{self, Lanes};
 use movers::oncoming::{self, Passing};
 pub use movers::prediction::VEHICLE_SPACE_M;
 pub use movers::Manner;
@@ -195,6 +196,8 @@ pub struct BaseStation {
     tracker: Tracker,
     /// The movers predicted, and the leader's pace among them.
     movers: Movers,
+    /// The people who stopped, passed behind.
+    lanes: Lanes,
     /// The map and what was sensed: what the planner and the formation avoid.
     world: Map,
     outbox: Vec<u8>,
@@ -248,6 +251,7 @@ impl BaseStation {
             perception: Perception::new(cfg.perception),
             tracker: Tracker::new(cfg.yielding.personal_space_m),
             movers: Movers::new(cfg.yielding.clone()),
+            lanes: Lanes::default(),
             world: cfg.map.clone(),
             cfg,
             link,
@@ -345,11 +349,25 @@ impl BaseStation {
             .map(|(_, p)| *p)
             .chain(std::iter::once(origin))
             .collect();
-        let seen =
-            self.tracker
-                .observe(&unexplained, origin, heading, &self.cfg.map, &fleet, now_ms);
+        let seen = self.tracker.observe(&unexplained, origin, now_ms);
+        let views: Vec<TrackView> = self
+            .tracker
+            .views(now_ms)
+            .filter(|t| seen.seen.contains(&t.id))
+            .collect();
+        let round = lanes::Round {
+            map: &self.cfg.map,
+            leader: (origin, DVec2::from_angle(heading)),
+            fleet: &fleet,
+        };
+        let lanes = self.lanes.step(&views, round);
         let mut change = self.perception.release(&seen.released);
-        let marks: Vec<_> = seen.marks.iter().map(|(_, h, t)| (*h, Some(*t))).collect();
+        let marks: Vec<_> = seen
+            .marks
+            .iter()
+            .map(|(_, h, t)| (*h, Some(*t)))
+            .chain(lanes.into_iter().map(|(h, t)| (h, Some(t))))
+            .collect();
         let added = self.perception.mark(&marks, 0, now_ms);
         change.added = added.added;
         change.removed.extend(added.removed);
@@ -591,7 +609,7 @@ impl BaseStation {
     /// No route: the lanes of people who stopped are given up (the robots then pass in
     /// front of them, as without lanes).
     fn drop_lanes(&mut self) {
-        let tracks = self.tracker.drop_lanes();
+        let tracks = self.lanes.drop_all();
         if tracks.is_empty() {
             return;
         }

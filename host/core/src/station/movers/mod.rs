@@ -4,6 +4,7 @@
 //! returned as a value ([`Decision`]); one event when the fleet's manner changes, and one
 //! when it ends ([`Manner`]).
 
+pub(crate) mod lanes;
 pub(crate) mod oncoming;
 pub(crate) mod pace;
 pub(crate) mod prediction;
