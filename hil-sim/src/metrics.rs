@@ -143,9 +143,8 @@ impl DrivenPath {
     /// The point `s` metres back along the path from `leader` (its current position).
     /// Before the path began, straight on along the chord from the leader to the path's
     /// start, as the control core extends its trail (`control_core::follower::Trail`),
-    /// or back along `heading` while the path is shorter than half a metre. (Back along
-    /// `heading` always, as until 2026-12-02, swung that stretch sideways once the leader
-    /// turned: a 7-follower line's last slot 0.5 m off the street it drove down.)
+    /// or back along `heading` while the path is shorter than half a metre (back along
+    /// `heading` always would swing that stretch sideways once the leader turned).
     pub fn behind(&self, leader: DVec2, heading: f64, s: f64) -> DVec2 {
         back_along(leader, heading, self.points.iter().rev().copied(), s)
     }

@@ -196,8 +196,9 @@ fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
-/// Within this of the leader a mover is in the scanner's reach, m.
-const TRACKING_REACH_M: f64 = crate::scanner::RANGE;
+/// The tracks are judged against the movers within this of the leader: where the
+/// fleet's decisions about them are made, m.
+const TRACKING_REACH_M: f64 = 8.0;
 
 impl TrackingReport {
     pub fn of(rec: &Recorder, leader: Option<usize>) -> Option<Self> {

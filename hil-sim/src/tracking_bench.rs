@@ -13,7 +13,7 @@ use glam::DVec2;
 use serde::Serialize;
 
 use crate::movers::{MoverState, Movers, RobotBody};
-use crate::scanner::{Scanner, RANGE};
+use crate::scanner::Scanner;
 
 /// The scanner's pace, m/s: the leader's among people.
 pub const PACE_MPS: f64 = 0.5;
@@ -25,6 +25,9 @@ const MATCH_M: f64 = 1.0;
 const AHEAD_S: f64 = 1.0;
 /// The scanner's footprint as the movers see it, m.
 const FOOTPRINT_M: f64 = 0.3;
+/// The tracks are judged against the movers within this of the scanner: where the fleet
+/// decides about them, m.
+const JUDGED_WITHIN_M: f64 = 8.0;
 
 /// How well the tracks followed the movers over one run.
 #[derive(Debug, Clone, Copy, Default, Serialize, PartialEq)]
@@ -125,7 +128,7 @@ pub fn run(scenario: &Scenario, seed: u64, duration_s: f64) -> TrackingFigures {
         let later = frames.get(k + ahead).map(|f| &f.2);
         for m in states
             .iter()
-            .filter(|m| m.velocity.length() > 0.3 && m.position.distance(*at) <= RANGE)
+            .filter(|m| m.velocity.length() > 0.3 && m.position.distance(*at) <= JUDGED_WITHIN_M)
         {
             sums.samples += 1;
             let nearest = tracks

@@ -129,7 +129,8 @@ pub fn sim_key_bytes(seed: u64) -> [u8; 32] {
     key
 }
 
-/// The simulated world's wall clock at t = 0, ms since the Unix epoch (2026-01-01).
+/// The simulated world's wall clock at t = 0, ms since the Unix epoch (1 January 2026:
+/// any fixed instant will do, so that a run depends on nothing but its seed).
 const SIM_EPOCH_MS: u64 = 1_767_225_600_000;
 
 /// The simulated fleet's master key, from the seed.
@@ -674,11 +675,10 @@ impl World {
     /// Robots: each boots at its phase and runs a control period every 100 ms of its own
     /// clock after that. The radio bytes that reached it are handed over in the physics
     /// step they arrive in (a step without sensors between periods), as the firmware's
-    /// radio task takes them as they come. Until 2026-12-01 `sim` handed them over at the
-    /// next period: a handshake answered just after one then measured its round trip a
-    /// period too long, and the robot's clock offset came out up to half a period off
-    /// behind a real transport (`basestation robots`, which took them on arrival; the two
-    /// now run the same).
+    /// radio task takes them as they come (handed over at the next period, a handshake
+    /// answered just after one would measure its round trip a period too long, and the
+    /// robot's clock offset would come out up to half a period off what it is behind a
+    /// real transport).
     fn control(&mut self, step_us: u64) -> Result<(), BrainError> {
         let t = self.t_us;
         let due: Vec<bool> = self

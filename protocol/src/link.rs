@@ -113,6 +113,60 @@ pub struct Peer {
 }
 
 impl Peer {
+    /// Its `Welcome` (`header`, `welcome`) to us (`me`): a challenge of ours answered in
+    /// time links it (or syncs its clock again within the same session).
+    fn welcome(
+        &mut self,
+        header: &Header,
+        welcome: &Welcome,
+        me: Address,
+        timing: Timing,
+        now_ms: u32,
+    ) -> Result<Event, Reject> {
+        let answered = self.challenges.iter().find(|(n, sent)| {
+            *n == welcome.nonce && now_ms.wrapping_sub(*sent) <= CHALLENGE_LIFETIME_MS
+        });
+        let Some(&(_, sent_ms)) = answered else {
+            return Err(Reject::Replay);
+        };
+        if header.to != me {
+            return Err(Reject::Replay);
+        }
+        let rtt = now_ms.wrapping_sub(sent_ms);
+        if rtt > timing.max_rtt_ms {
+            return Err(Reject::Stale);
+        }
+        self.challenges.clear();
+        // Within the same session a floor never goes back: a Welcome held back and
+        // delivered late must not reopen the frames accepted since it was sent.
+        let same = self.session == Some(welcome.session);
+        let floor = |old: Option<u32>, new: u32| match old {
+            Some(old) if same => old.max(new),
+            _ => new,
+        };
+        self.session = Some(welcome.session);
+        self.rx_unicast.last = Some(floor(self.rx_unicast.last, header.seq));
+        self.rx_broadcast.last = Some(floor(self.rx_broadcast.last, welcome.broadcast_seq));
+        self.last_rx_ms = Some(now_ms);
+        // NTP's estimate: the answer left halfway through the round trip. Within a
+        // session, a longer round trip than the estimate's is less exact: it replaces the
+        // estimate only as that ages (1 ms of round trip per 1.024 s, far above any
+        // crystal's drift), as NTP's clock filter prefers the shortest round trips.
+        let age = now_ms.wrapping_sub(self.synced_ms) >> 10;
+        if !same || rtt <= self.rtt_ms.unwrap_or(0).saturating_add(age) {
+            let mid = sent_ms.wrapping_add(rtt / 2);
+            self.clock_offset_ms = Some(header.time_ms.wrapping_sub(mid) as i32);
+            self.rtt_ms = Some(rtt);
+            self.synced_ms = now_ms;
+        }
+        self.accepted = self.accepted.saturating_add(1);
+        Ok(if same {
+            Event::Synced { peer: header.from }
+        } else {
+            Event::Linked { peer: header.from }
+        })
+    }
+
     fn new(address: Address, key: FleetKey) -> Self {
         Self {
             address,
@@ -392,51 +446,7 @@ impl<const PEERS: usize> Link<PEERS> {
                     nonce: hello.nonce,
                 })
             }
-            Message::Welcome(welcome) => {
-                let answered = peer.challenges.iter().find(|(n, sent)| {
-                    *n == welcome.nonce && now_ms.wrapping_sub(*sent) <= CHALLENGE_LIFETIME_MS
-                });
-                let Some(&(_, sent_ms)) = answered else {
-                    return Err(Reject::Replay);
-                };
-                if header.to != self.me {
-                    return Err(Reject::Replay);
-                }
-                let rtt = now_ms.wrapping_sub(sent_ms);
-                if rtt > timing.max_rtt_ms {
-                    return Err(Reject::Stale);
-                }
-                peer.challenges.clear();
-                // Within the same session a floor never goes back: a Welcome held back and
-                // delivered late must not reopen the frames accepted since it was sent.
-                let same = peer.session == Some(welcome.session);
-                let floor = |old: Option<u32>, new: u32| match old {
-                    Some(old) if same => old.max(new),
-                    _ => new,
-                };
-                peer.session = Some(welcome.session);
-                peer.rx_unicast.last = Some(floor(peer.rx_unicast.last, header.seq));
-                peer.rx_broadcast.last = Some(floor(peer.rx_broadcast.last, welcome.broadcast_seq));
-                peer.last_rx_ms = Some(now_ms);
-                // NTP's estimate: the answer left halfway through the round trip. Within a
-                // session, a longer round trip than the estimate's is less exact: it
-                // replaces the estimate only as that ages (1 ms of round trip per 1.024 s,
-                // far above any crystal's drift), as NTP's clock filter prefers the
-                // shortest round trips.
-                let age = now_ms.wrapping_sub(peer.synced_ms) >> 10;
-                if !same || rtt <= peer.rtt_ms.unwrap_or(0).saturating_add(age) {
-                    let mid = sent_ms.wrapping_add(rtt / 2);
-                    peer.clock_offset_ms = Some(header.time_ms.wrapping_sub(mid) as i32);
-                    peer.rtt_ms = Some(rtt);
-                    peer.synced_ms = now_ms;
-                }
-                peer.accepted = peer.accepted.saturating_add(1);
-                Ok(if same {
-                    Event::Synced { peer: header.from }
-                } else {
-                    Event::Linked { peer: header.from }
-                })
-            }
+            Message::Welcome(welcome) => peer.welcome(&header, &welcome, self.me, timing, now_ms),
             _ => {
                 let stream = if header.to == Address::Broadcast {
                     &mut peer.rx_broadcast

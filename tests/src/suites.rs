@@ -48,10 +48,8 @@ pub const SUITES: &[Suite] = &[
     suite!("oncoming-oblivious", Streets, |s| gen::oncoming_alley(
         s, false
     )),
-    suite!("cyclist-social", Streets, |s| gen::cyclist_overtaking(
-        s, true
-    )),
-    suite!("cyclist-oblivious", Streets, |s| gen::cyclist_overtaking(
+    suite!("along-social", Streets, |s| gen::along_the_street(s, true)),
+    suite!("along-oblivious", Streets, |s| gen::along_the_street(
         s, false
     )),
     suite!("car-pulling-out", Streets, gen::car_pulling_out),
@@ -74,6 +72,7 @@ pub const SUITES: &[Suite] = &[
     suite!("plaza-0.3-social", Crowds, |s| gen::plaza_crowd(
         s, 0.3, true
     )),
+    suite!("plaza-any-social", Crowds, gen::plaza_any_social),
     suite!("plaza-0.05-oblivious", Crowds, |s| gen::plaza_crowd(
         s, 0.05, false
     )),

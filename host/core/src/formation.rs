@@ -428,8 +428,13 @@ impl FormationManager {
     /// with the leader at `leader` (`behind`: the leader's driven path from it, newest
     /// first).
     pub fn reference(&self, k: usize, leader: PlanPose, behind: &[DVec2]) -> DVec2 {
+        self.reference_at(k, leader, behind, self.blend)
+    }
+
+    /// [`FormationManager::reference`] at `blend`.
+    pub fn reference_at(&self, k: usize, leader: PlanPose, behind: &[DVec2], blend: f64) -> DVec2 {
         let (w, l) = reference_ends(leader, self.wide[k], self.line[k], behind, 0.0);
-        w.lerp(l, self.blend)
+        w.lerp(l, blend)
     }
 
     /// Follower k's slot (L, φ) at the current blend, on the straight segment between its

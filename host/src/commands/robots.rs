@@ -172,99 +172,141 @@ impl Air {
 
 pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
     let scenario = super::load_scenario(&args.scenario)?;
-    let key = crate::key::require_key(&args.key)?;
     let end_s = args.duration.unwrap_or(scenario.sim.duration_s);
     let step_us = scenario.sim.physics_step_ms as u64 * 1000;
-    let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
-    options.firmware = args.robots.firmware.into();
-    options.base = BaseSide::External;
-    let mut publisher = FixPublisher::open(&args.publish_fixes, &scenario, &key)?;
-    let mut scans = args
-        .publish_scan
-        .map(|to| crate::live::feeds::scan::ScanPublisher::open(to, &key))
-        .transpose()?;
-    options.key = Some(Arc::new(key));
-    if !args.publish_fixes.is_empty() {
-        options.fixes = FixPath::Published;
-    }
-    let settle_s = options.settle_s;
-    let mut world = World::new(scenario, options).context("cannot start the robots")?;
-    let mut air = if args.pty {
-        Air::open_pty()?
-    } else {
-        Air::open_udp(args.udp.expect("clap requires --udp or --pty"))?
-    };
+    let mut r = Rehearsal::open(&args, scenario)?;
     use std::io::Write;
     std::io::stdout().flush()?;
-    let listening = air.address();
-
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing Ctrl-C")?;
-
     // The wall clock paces the world; nothing simulated reads it.
     let wall = Instant::now();
-    let epoch_unix_ms = super::unix_ms()?;
-    let mut heard = Vec::new();
-    let mut diagnosis = crate::live::diagnosis::RobotsDiagnosis::default();
-    let mut looked_s = 0;
-    while !stop.load(Ordering::SeqCst) && (world.t_us as f64) < end_s * 1e6 {
+    r.epoch_unix_ms = super::unix_ms()?;
+    while !stop.load(Ordering::SeqCst) && (r.world.t_us as f64) < end_s * 1e6 {
         // The station settles as long after its own arrival, which may come a little
         // later: give it time to finish before the robots go away.
-        if let Some(goal) = world.goal_time_s() {
-            if world.t_us as f64 / 1e6 >= goal + settle_s + STATION_GRACE_S {
+        if let Some(goal) = r.world.goal_time_s() {
+            if r.world.t_us as f64 / 1e6 >= goal + r.settle_s + STATION_GRACE_S {
                 break;
             }
         }
-        heard.clear();
-        air.poll(&mut heard)?;
-        diagnosis.heard(heard.len());
-        world.base_transmit(&heard);
-        world.step(step_us).context("a robot's controller failed")?;
-        air.send(&world.take_base_inbox())?;
-        let t_s = world.t_us as f64 / 1e6;
-        let fixes = world.take_published_fixes();
-        if args.fixes_stop_at.is_none_or(|stop| t_s < stop) {
-            publisher.publish(&fixes, epoch_unix_ms);
-        }
-        let scan = world.take_scan();
-        if let Some(scans) = &mut scans {
-            scans.publish(&scan, epoch_unix_ms + world.t_us / 1000);
-        }
-        // Once a second: a station not heard, frames the robots refuse.
-        if world.t_us / 1_000_000 != looked_s {
-            looked_s = world.t_us / 1_000_000;
-            let mut rejects = protocol::RejectCounts::default();
-            for r in &world.robots {
-                rejects.merge(&r.brain.rejects());
-            }
-            diagnosis.look(rejects, (world.t_us / 1000) as u32, &listening);
-        }
-        let ahead = Duration::from_micros(world.t_us).saturating_sub(wall.elapsed());
+        r.step(step_us, args.fixes_stop_at)?;
+        let ahead = Duration::from_micros(r.world.t_us).saturating_sub(wall.elapsed());
         std::thread::sleep(ahead);
     }
-    let mut report = hil_sim::run::report_of(&world, wall.elapsed().as_secs_f64());
-    report.started_unix_ms = Some(epoch_unix_ms);
-    // Written where asked only (until 2026-12-03 to out/SCENARIO.robots.json unasked).
-    if let Some(path) = &args.report {
-        super::create_parent(path)?;
-        super::write_report(&report, path)?;
+    r.finish(&args, wall.elapsed().as_secs_f64())
+}
+
+/// The scenario's robots behind a real transport, and what they publish.
+struct Rehearsal {
+    world: World,
+    air: Air,
+    listening: String,
+    publisher: FixPublisher,
+    scans: Option<crate::live::feeds::scan::ScanPublisher>,
+    epoch_unix_ms: u64,
+    settle_s: f64,
+    heard: Vec<u8>,
+    diagnosis: crate::live::diagnosis::RobotsDiagnosis,
+    looked_s: u64,
+}
+
+impl Rehearsal {
+    fn open(args: &RobotsArgs, scenario: base_station::scenario::Scenario) -> anyhow::Result<Self> {
+        let key = crate::key::require_key(&args.key)?;
+        let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
+        options.firmware = args.robots.firmware.into();
+        options.base = BaseSide::External;
+        let publisher = FixPublisher::open(&args.publish_fixes, &scenario, &key)?;
+        let scans = args
+            .publish_scan
+            .map(|to| crate::live::feeds::scan::ScanPublisher::open(to, &key))
+            .transpose()?;
+        options.key = Some(Arc::new(key));
+        if !args.publish_fixes.is_empty() {
+            options.fixes = FixPath::Published;
+        }
+        let settle_s = options.settle_s;
+        let world = World::new(scenario, options).context("cannot start the robots")?;
+        let air = if args.pty {
+            Air::open_pty()?
+        } else {
+            Air::open_udp(args.udp.expect("clap requires --udp or --pty"))?
+        };
+        let listening = air.address();
+        Ok(Self {
+            world,
+            air,
+            listening,
+            publisher,
+            scans,
+            epoch_unix_ms: super::unix_ms()?,
+            settle_s,
+            heard: Vec::new(),
+            diagnosis: crate::live::diagnosis::RobotsDiagnosis::default(),
+            looked_s: 0,
+        })
     }
-    if let Some(path) = &args.robots.trace {
-        super::create_parent(path)?;
-        super::write_trace(&world, path)?;
+
+    /// One physics step: what the station sent in, the world on, what the robots send
+    /// out, the fixes and the scan published (fixes until `fixes_stop_at`, s).
+    fn step(&mut self, step_us: u64, fixes_stop_at: Option<f64>) -> anyhow::Result<()> {
+        self.heard.clear();
+        self.air.poll(&mut self.heard)?;
+        self.diagnosis.heard(self.heard.len());
+        self.world.base_transmit(&self.heard);
+        self.world
+            .step(step_us)
+            .context("a robot's controller failed")?;
+        self.air.send(&self.world.take_base_inbox())?;
+        let t_s = self.world.t_us as f64 / 1e6;
+        let fixes = self.world.take_published_fixes();
+        if fixes_stop_at.is_none_or(|stop| t_s < stop) {
+            self.publisher.publish(&fixes, self.epoch_unix_ms);
+        }
+        let scan = self.world.take_scan();
+        if let Some(scans) = &mut self.scans {
+            scans.publish(&scan, self.epoch_unix_ms + self.world.t_us / 1000);
+        }
+        // Once a second: a station not heard, frames the robots refuse.
+        if self.world.t_us / 1_000_000 != self.looked_s {
+            self.looked_s = self.world.t_us / 1_000_000;
+            let mut rejects = protocol::RejectCounts::default();
+            for r in &self.world.robots {
+                rejects.merge(&r.brain.rejects());
+            }
+            let now_ms = (self.world.t_us / 1000) as u32;
+            self.diagnosis.look(rejects, now_ms, &self.listening);
+        }
+        Ok(())
     }
-    eprintln!(
-        "robots: {:.1} s, goal {}, {} contacts{}",
-        world.t_us as f64 / 1e6,
-        match report.time_to_goal_s {
-            Some(t) => format!("reached at {t:.1} s"),
-            None => "not reached".into(),
-        },
-        report.collisions,
-        args.report
-            .as_ref()
-            .map_or(String::new(), |p| format!("; report {}", p.display()))
-    );
-    Ok(())
+
+    /// The report and trace where asked, and a line on how it went.
+    fn finish(&self, args: &RobotsArgs, wall_s: f64) -> anyhow::Result<()> {
+        let world = &self.world;
+        let mut report = hil_sim::run::report_of(world, wall_s);
+        report.started_unix_ms = Some(self.epoch_unix_ms);
+        if let Some(path) = &args.report {
+            super::create_parent(path)?;
+            super::write_report(&report, path)?;
+        }
+        if let Some(path) = &args.robots.trace {
+            super::create_parent(path)?;
+            super::write_trace(world, path)?;
+        }
+        eprintln!(
+            "robots: {:.1} s, goal {}, {} contacts{}",
+            world.t_us as f64 / 1e6,
+            match report.time_to_goal_s {
+                Some(t) => format!("reached at {t:.1} s"),
+                None => "not reached".into(),
+            },
+            report.collisions,
+            args.report
+                .as_ref()
+                .map_or(String::new(), |p| format!("; report {}", p.display()))
+        );
+        Ok(())
+    }
 }

@@ -80,156 +80,21 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
         super::create_parent(path)?;
         crate::live::recording::layout::write(&scenario, path)?;
     }
-    let key = crate::key::require_key(&args.key)?;
-    let transport: Box<dyn Transport> = match (&args.port, args.udp) {
-        (Some(port), _) => {
-            Box::new(Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?)
-        }
-        (None, Some(peer)) => {
-            Box::new(Udp::open(args.bind, peer).context("cannot open the UDP socket")?)
-        }
-        (None, None) => anyhow::bail!("no radio: give --port DEV or --udp HOST:PORT"),
-    };
-    let mut transport = Modem {
-        transport,
-        warned: None,
-    };
-    let mut random = [0u8; 8];
-    getrandom::fill(&mut random).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
-    let session = u32::from_le_bytes(random[..4].try_into().expect("4 bytes"));
-    let start_ms = super::unix_ms()?;
-    let nonce_base = base_station::station::nonce_base(
-        start_ms,
-        u32::from_le_bytes(random[4..8].try_into().expect("4 bytes")),
-    );
-    let mut station = BaseStation::new(
-        StationConfig::from_scenario(&scenario),
-        &key,
-        session,
-        nonce_base,
-    );
-
-    let allow: Arc<[crate::live::feeds::gate::AllowNet]> = Arc::from(args.feed_allow.clone());
-    let mut localization = crate::live::feeds::localization::Localization::open(
-        args.fix_feed,
-        &args.nmea,
-        &scenario,
-        &key,
-        allow.clone(),
-    )?;
-    match &localization {
-        Some(_) => station.watch_fixes(0),
-        None => tracing::warn!(
-            "no localization source (--fix-feed, --nmea): the station forwards no fixes, so robots without fixes of their own (a rehearsal's simulated robots have them) drive on odometry alone"
-        ),
-    }
-
-    let mut scans = args
-        .scan_feed
-        .map(|addr| crate::live::feeds::scan::ScanFeed::open(addr, &key, allow.clone()))
-        .transpose()?;
-
-    let console = crate::live::console::Console::open(args.serve.console, &scenario)?;
-
-    let mut recording = match (&args.mcap, args.serve.live) {
-        (None, None) => None,
-        (mcap, live) => Some(crate::live::recording::LiveRecording::create(
-            &scenario,
-            mcap.as_deref(),
-            live,
-            &args.serve.live_origin,
-            station.robots().keys().copied(),
-        )?),
-    };
-    let now_ns = crate::live::recording::now_ns;
-
+    let mut live = Live::open(&args, &scenario)?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing Ctrl-C")?;
-
     tracing::info!(scenario = %scenario.name, "base station running");
-    let start = Instant::now();
-    // The station clock's zero on the Unix clock: fixes are stamped with the latter.
-    let start_unix_ms = super::unix_ms()?;
-    let period = Duration::from_millis(100);
-    let mut next = start;
-    let mut buf = [0u8; 2048];
-    let mut last_report = 0u32;
-    let mut arrived_ms = None;
-    let mut timing = crate::live::timing::LoopTiming::default();
-    let mut diagnosis = crate::live::diagnosis::Diagnosis::default();
     let ids: Vec<u16> = scenario.robots.iter().map(|r| r.id).collect();
+    let mut arrived_ms = None;
     while !stop.load(Ordering::SeqCst) {
-        let now_ms = start.elapsed().as_millis() as u32;
+        let now_ms = live.now_ms();
         if args.duration.is_some_and(|d| now_ms as f64 / 1000.0 >= d) {
             break;
         }
-        // Receive until the next tick.
-        loop {
-            let left = next.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                break;
-            }
-            let n = transport.recv(&mut buf, left);
-            if n > 0 {
-                station.receive(&buf[..n], start.elapsed().as_millis() as u32);
-                if let Some(r) = &recording {
-                    r.radio("air", &buf[..n], now_ns());
-                }
-                // Handshake answers go at once: a robot takes the answer's stamp as our
-                // clock at the middle of its round trip, so holding it to the next tick
-                // would skew its clock offset by up to half a period.
-                let answers = station.take_outbox();
-                if !answers.is_empty() {
-                    transport.send(&answers);
-                    if let Some(r) = &recording {
-                        r.radio("base", &answers, now_ns());
-                    }
-                }
-            }
-        }
-        let tick = next;
-        next += period;
-        let began = Instant::now();
-        let now_ms = start.elapsed().as_millis() as u32;
-        if let Some(l) = &mut localization {
-            l.poll(&mut station, start_unix_ms, now_ms);
-        }
-        if let Some(feed) = &mut scans {
-            feed.poll(&mut station, start_unix_ms + now_ms as u64, now_ms);
-        }
-        if let Some(console) = console.as_ref().filter(|c| c.alive()) {
-            for command in console.commands() {
-                station.operator(command, now_ms);
-            }
-        }
-        station.step(now_ms);
-        if let Some(console) = &console {
-            console.publish(&crate::live::console::snapshot(&station, now_ms));
-        }
-        let out = station.take_outbox();
-        transport.send(&out);
-        if let Some(r) = recording.as_mut() {
-            r.radio("base", &out, now_ns());
-            r.station(&station, now_ms, now_ns());
-            r.scene(&station, now_ms, now_ns());
-        }
-        timing.period(began.saturating_duration_since(tick), began.elapsed());
-        if now_ms / 1000 != last_report {
-            last_report = now_ms / 1000;
-            diagnosis.look(&station, &ids, now_ms);
-            // A status line every 5 s, each robot's every 15 s.
-            if last_report.is_multiple_of(5) {
-                log_link(&station, now_ms, last_report.is_multiple_of(15));
-            }
-            if let Some(l) = localization
-                .as_ref()
-                .filter(|_| last_report.is_multiple_of(5))
-            {
-                l.log();
-            }
-        }
-        if args.duration.is_none() && station.arrived() {
+        live.receive_until_tick();
+        let now_ms = live.tick(&ids);
+        if args.duration.is_none() && live.station.arrived() {
             let at = *arrived_ms.get_or_insert_with(|| {
                 tracing::info!("goal reached");
                 now_ms
@@ -239,49 +104,266 @@ pub fn run(args: RunArgs) -> anyhow::Result<super::outcome::Outcome> {
             }
         }
     }
-    // Leave the fleet standing.
-    station.broadcast_stop(start.elapsed().as_millis() as u32);
-    let out = station.take_outbox();
-    transport.send(&out);
-    if let Some(r) = recording {
-        r.radio("base", &out, now_ns());
-        r.close()?;
+    live.finish(&scenario.name, &args, stop.load(Ordering::SeqCst))
+}
+
+/// A run under way: the station, its radio, the site's feeds, the console and the
+/// recording, on the wall clock.
+struct Live {
+    station: BaseStation,
+    transport: Modem,
+    localization: Option<crate::live::feeds::localization::Localization>,
+    scans: Option<crate::live::feeds::scan::ScanFeed>,
+    console: Option<crate::live::console::Console>,
+    recording: Option<crate::live::recording::LiveRecording>,
+    start: Instant,
+    /// The station clock's zero on the Unix clock: fixes are stamped with the latter.
+    start_unix_ms: u64,
+    next: Instant,
+    buf: Vec<u8>,
+    last_report: u32,
+    timing: crate::live::timing::LoopTiming,
+    diagnosis: crate::live::diagnosis::Diagnosis,
+}
+
+/// The station's 10 Hz period.
+const PERIOD: Duration = Duration::from_millis(100);
+
+impl Live {
+    /// Opens the radio, the station with a fresh session, the feeds, the console and the
+    /// recording.
+    fn open(args: &RunArgs, scenario: &base_station::scenario::Scenario) -> anyhow::Result<Self> {
+        let key = crate::key::require_key(&args.key)?;
+        let transport = Modem {
+            transport: open_transport(args)?,
+            warned: None,
+        };
+        let station = new_station(scenario, &key)?;
+        let allow: Arc<[crate::live::feeds::gate::AllowNet]> = Arc::from(args.feed_allow.clone());
+        let localization = crate::live::feeds::localization::Localization::open(
+            args.fix_feed,
+            &args.nmea,
+            scenario,
+            &key,
+            allow.clone(),
+        )?;
+        let mut station = station;
+        match &localization {
+            Some(_) => station.watch_fixes(0),
+            None => tracing::warn!(
+                "no localization source (--fix-feed, --nmea): the station forwards no fixes, so robots without fixes of their own (a rehearsal's simulated robots have them) drive on odometry alone"
+            ),
+        }
+        let scans = args
+            .scan_feed
+            .map(|addr| crate::live::feeds::scan::ScanFeed::open(addr, &key, allow.clone()))
+            .transpose()?;
+        let console = crate::live::console::Console::open(args.serve.console, scenario)?;
+        let recording = match (&args.mcap, args.serve.live) {
+            (None, None) => None,
+            (mcap, live) => Some(crate::live::recording::LiveRecording::create(
+                scenario,
+                mcap.as_deref(),
+                live,
+                &args.serve.live_origin,
+                station.robots().keys().copied(),
+            )?),
+        };
+        let start = Instant::now();
+        Ok(Self {
+            station,
+            transport,
+            localization,
+            scans,
+            console,
+            recording,
+            start,
+            start_unix_ms: super::unix_ms()?,
+            next: start,
+            buf: vec![0u8; 2048],
+            last_report: 0,
+            timing: crate::live::timing::LoopTiming::default(),
+            diagnosis: crate::live::diagnosis::Diagnosis::default(),
+        })
     }
-    let mut summary = summary(
-        &scenario.name,
-        &station,
-        localization.as_ref(),
-        scans.as_ref().map(|s| s.counts()),
-    );
-    summary["loop"] = serde_json::to_value(timing.report())?;
-    // The station's clock zero on the Unix clock: `robots`' report has its own, so the
-    // two processes' times line up.
-    summary["started_unix_ms"] = json!(start_unix_ms);
-    if let Some(console) = &console {
-        summary["console"] = json!({ "alive": console.alive(), "urls": console.urls });
+
+    fn now_ms(&self) -> u32 {
+        self.start.elapsed().as_millis() as u32
     }
-    eprintln!("{}", serde_json::to_string(&summary)?);
-    if let Some(path) = &args.report {
-        let text = serde_json::to_string_pretty(&summary)? + "\n";
-        super::replace(path, |partial| {
-            std::fs::write(partial, &text)
-                .with_context(|| format!("cannot write {}", partial.display()))
-        })?;
+
+    /// Receives until the next tick. Handshake answers go at once: a robot takes the
+    /// answer's stamp as our clock at the middle of its round trip, so holding it to the
+    /// next tick would skew its clock offset by up to half a period.
+    fn receive_until_tick(&mut self) {
+        let now_ns = crate::live::recording::now_ns;
+        loop {
+            let left = self.next.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            let n = self.transport.recv(&mut self.buf, left);
+            if n == 0 {
+                continue;
+            }
+            self.station.receive(&self.buf[..n], self.now_ms());
+            if let Some(r) = &self.recording {
+                r.radio("air", &self.buf[..n], now_ns());
+            }
+            let answers = self.station.take_outbox();
+            if !answers.is_empty() {
+                self.transport.send(&answers);
+                if let Some(r) = &self.recording {
+                    r.radio("base", &answers, now_ns());
+                }
+            }
+        }
     }
-    let outcome = super::outcome::Outcome::of(&station, stop.load(Ordering::SeqCst));
-    if let Some(console) = console.as_ref().filter(|c| c.alive()) {
-        // The page says the run finished and how, not that the station is gone.
-        let now_ms = start.elapsed().as_millis() as u32;
-        let last = crate::live::console::snapshot(&station, now_ms);
-        console.publish(&crate::live::console::finished(last, outcome.words()));
-        std::thread::sleep(crate::live::console::FINISHED_SHOWN);
+
+    /// One period: the feeds, the operator, the station's step and what it sends, the
+    /// recording, the status lines. The station's clock then.
+    fn tick(&mut self, ids: &[u16]) -> u32 {
+        let now_ns = crate::live::recording::now_ns;
+        let tick = self.next;
+        self.next += PERIOD;
+        let began = Instant::now();
+        let now_ms = self.now_ms();
+        if let Some(l) = &mut self.localization {
+            l.poll(&mut self.station, self.start_unix_ms, now_ms);
+        }
+        if let Some(feed) = &mut self.scans {
+            feed.poll(
+                &mut self.station,
+                self.start_unix_ms + now_ms as u64,
+                now_ms,
+            );
+        }
+        if let Some(console) = self.console.as_ref().filter(|c| c.alive()) {
+            for command in console.commands() {
+                self.station.operator(command, now_ms);
+            }
+        }
+        self.station.step(now_ms);
+        if let Some(console) = &self.console {
+            console.publish(&crate::live::console::snapshot(&self.station, now_ms));
+        }
+        let out = self.station.take_outbox();
+        self.transport.send(&out);
+        if let Some(r) = self.recording.as_mut() {
+            r.radio("base", &out, now_ns());
+            r.station(&self.station, now_ms, now_ns());
+            r.scene(&self.station, now_ms, now_ns());
+        }
+        self.timing
+            .period(began.saturating_duration_since(tick), began.elapsed());
+        self.status(ids, now_ms);
+        now_ms
     }
-    if outcome == super::outcome::Outcome::NeverLinked {
-        eprintln!(
-            "no robot ever linked: check the transport's address (--udp / --port) and that the station and the robots share the fleet key"
+
+    /// Once a second: the diagnosis; every 5 s a status line, each robot's every 15 s.
+    fn status(&mut self, ids: &[u16], now_ms: u32) {
+        if now_ms / 1000 == self.last_report {
+            return;
+        }
+        self.last_report = now_ms / 1000;
+        self.diagnosis.look(&self.station, ids, now_ms);
+        if self.last_report.is_multiple_of(5) {
+            log_link(&self.station, now_ms, self.last_report.is_multiple_of(15));
+            if let Some(l) = &self.localization {
+                l.log();
+            }
+        }
+    }
+
+    /// Leaves the fleet standing, closes the recording, prints and writes the summary,
+    /// shows the console how it ended; the outcome.
+    fn finish(
+        mut self,
+        scenario: &str,
+        args: &RunArgs,
+        interrupted: bool,
+    ) -> anyhow::Result<super::outcome::Outcome> {
+        let now_ns = crate::live::recording::now_ns;
+        self.station.broadcast_stop(self.now_ms());
+        let out = self.station.take_outbox();
+        self.transport.send(&out);
+        if let Some(r) = self.recording.take() {
+            r.radio("base", &out, now_ns());
+            r.close()?;
+        }
+        let summary = self.summary(scenario)?;
+        eprintln!("{}", serde_json::to_string(&summary)?);
+        if let Some(path) = &args.report {
+            let text = serde_json::to_string_pretty(&summary)? + "\n";
+            super::replace(path, |partial| {
+                std::fs::write(partial, &text)
+                    .with_context(|| format!("cannot write {}", partial.display()))
+            })?;
+        }
+        let outcome = super::outcome::Outcome::of(&self.station, interrupted);
+        if let Some(console) = self.console.as_ref().filter(|c| c.alive()) {
+            // The page says the run finished and how, not that the station is gone.
+            let last = crate::live::console::snapshot(&self.station, self.now_ms());
+            console.publish(&crate::live::console::finished(last, outcome.words()));
+            std::thread::sleep(crate::live::console::FINISHED_SHOWN);
+        }
+        if outcome == super::outcome::Outcome::NeverLinked {
+            eprintln!(
+                "no robot ever linked: check the transport's address (--udp / --port) and that the station and the robots share the fleet key"
+            );
+        }
+        Ok(outcome)
+    }
+
+    /// The summary with the loop's timing, the station's clock zero on the Unix clock
+    /// (`robots`' report has its own, so the two processes' times line up) and the
+    /// console's addresses.
+    fn summary(&self, scenario: &str) -> anyhow::Result<serde_json::Value> {
+        let mut summary = summary(
+            scenario,
+            &self.station,
+            self.localization.as_ref(),
+            self.scans.as_ref().map(|s| s.counts()),
         );
+        summary["loop"] = serde_json::to_value(self.timing.report())?;
+        summary["started_unix_ms"] = json!(self.start_unix_ms);
+        if let Some(console) = &self.console {
+            summary["console"] = json!({ "alive": console.alive(), "urls": console.urls });
+        }
+        Ok(summary)
     }
-    Ok(outcome)
+}
+
+/// The radio the command line names.
+fn open_transport(args: &RunArgs) -> anyhow::Result<Box<dyn Transport>> {
+    Ok(match (&args.port, args.udp) {
+        (Some(port), _) => {
+            Box::new(Serial::open(port, args.baud).with_context(|| format!("cannot open {port}"))?)
+        }
+        (None, Some(peer)) => {
+            Box::new(Udp::open(args.bind, peer).context("cannot open the UDP socket")?)
+        }
+        (None, None) => anyhow::bail!("no radio: give --port DEV or --udp HOST:PORT"),
+    })
+}
+
+/// A station with a fresh random session, its nonces counting on from the Unix clock.
+fn new_station(
+    scenario: &base_station::scenario::Scenario,
+    key: &protocol::MasterKey,
+) -> anyhow::Result<BaseStation> {
+    let mut random = [0u8; 8];
+    getrandom::fill(&mut random).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
+    let session = u32::from_le_bytes(random[..4].try_into().expect("4 bytes"));
+    let nonce_base = base_station::station::nonce_base(
+        super::unix_ms()?,
+        u32::from_le_bytes(random[4..8].try_into().expect("4 bytes")),
+    );
+    Ok(BaseStation::new(
+        StationConfig::from_scenario(scenario),
+        key,
+        session,
+        nonce_base,
+    ))
 }
 
 /// `--udp`'s HOST:PORT, a name resolved (its first IPv4 address, else its first).

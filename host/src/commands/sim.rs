@@ -11,7 +11,7 @@ use anyhow::Context;
 use base_station::scenario::movers::MoverShape;
 use clap::Args;
 use hil_sim::recording::Recording;
-use hil_sim::report::Report;
+use hil_sim::report::{Report, RobotReport};
 use hil_sim::run::simulate_with;
 use hil_sim::world::{SimOptions, World};
 
@@ -85,146 +85,32 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     if !args.realtime && (args.serve.console.is_some() || args.serve.live.is_some()) {
         anyhow::bail!("--console and --live need --realtime (a run no faster than the wall clock)");
     }
-    let mut scenario = super::load_scenario(&args.scenario)?;
-    for text in &args.faults {
-        scenario.faults.push(parse_fault(text)?);
-    }
-    if let Err(problems) = scenario.validate() {
-        let lines: Vec<String> = problems
-            .iter()
-            .map(|(field, message)| format!("--fault: field `{field}`: {message}"))
-            .collect();
-        anyhow::bail!("{}", lines.join("\n"));
-    }
+    let (scenario, options) = prepare(&args)?;
     let name = scenario.name.clone();
-    if let Some(path) = &args.layout {
-        super::create_parent(path)?;
-        crate::live::recording::layout::write(&scenario, path)?;
-    }
-    let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
-    options.firmware = args.robots.firmware.into();
-    options.realtime = args.realtime;
-    if let Some(b) = args.baseline {
-        options.movers = b.into();
-    }
-    // Simulated time on a terminal (stderr); nothing when stderr is not one (CI, pipes).
-    let bar = indicatif::ProgressBar::new(1000);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} simulating {msg} [{bar:30}] {elapsed}")
-            .expect("a valid template")
-            .progress_chars("=> "),
-    );
-    let console = crate::live::console::Console::open(args.serve.console, &scenario)?;
-    let mut live = match args.serve.live {
-        Some(addr) => Some(crate::live::recording::LiveRecording::create(
-            &scenario,
-            None,
-            Some(addr),
-            &args.serve.live_origin,
-            scenario.robots.iter().map(|r| r.id),
-        )?),
-        None => None,
-    };
-    let mut live_sent = 0;
-    let end = scenario.sim.duration_s;
     let mcap_path = args
         .mcap
+        .clone()
         .unwrap_or_else(|| PathBuf::from(format!("out/{name}.mcap")));
     super::create_parent(&mcap_path)?;
-    // Recorded while the simulation runs, on a thread of its own, to a partial file
-    // renamed into place at the end: an interrupted run never truncates the last one.
-    let mcap_partial = super::partial_path(&mcap_path);
-    let mut recording: Option<Result<Recording, String>> = None;
-    // In real time, Ctrl-C / SIGTERM end the run early; its report, figure and
-    // recording are written as for any end (exit code 4).
-    let interrupted = Arc::new(AtomicBool::new(false));
-    if args.realtime {
-        let flag = interrupted.clone();
-        ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
-            .context("installing Ctrl-C")?;
-    }
+    let mut watch = Watch::open(&args, &scenario, &mcap_path)?;
     let empty_site = (scenario.clone(), options.clone());
-    let result = simulate_with(scenario, options, |world| {
-        match &mut recording {
-            None => recording = Some(Recording::create(world, &mcap_partial)),
-            Some(Ok(r)) if world.t_us.is_multiple_of(Recording::FEED_EVERY_US) => r.feed(world),
-            Some(_) => {}
-        }
-        world.stop_requested |= interrupted.load(Ordering::SeqCst);
-        let t = world.t_us as f64 / 1e6;
-        let permille = (t / end.max(1e-9) * 1000.0) as u64;
-        if permille != bar.position() {
-            bar.set_position(permille);
-            bar.set_message(format!("{t:.0} s"));
-        }
-        if let Some(console) = console.as_ref().filter(|c| c.alive()) {
-            let now_ms = world.base_ms();
-            for command in console.commands() {
-                world.station.operator(command, now_ms);
-            }
-            if world.t_us.is_multiple_of(100_000) {
-                let mut snapshot = crate::live::console::snapshot(&world.station, now_ms);
-                snapshot["movers"] = movers_json(world);
-                console.publish(&snapshot);
-            }
-        }
-        if let Some(live) = live.as_mut() {
-            // What went on the air since the last step: the station's as `base`, the rest
-            // as the station heard it (`air`).
-            for (t_us, from, bytes) in &world.transmitted[live_sent..] {
-                live.radio(if *from == 0 { "base" } else { "air" }, bytes, t_us * 1000);
-            }
-            live_sent = world.transmitted.len();
-            if world.t_us.is_multiple_of(100_000) {
-                live.station(&world.station, world.base_ms(), world.t_us * 1000);
-                live.scene(&world.station, world.base_ms(), world.t_us * 1000);
-            }
-        }
-    });
-    if let Some(live) = live {
-        live.close()?;
-    }
-    bar.finish_and_clear();
+    let result = simulate_with(scenario, options, |world| watch.step(world));
+    let (console, interrupted, recording) = watch.close()?;
     let (mut report, world) = result.context("the simulation failed")?;
     report.movers.time_to_goal_empty_s =
         hil_sim::run::empty_site_time(&empty_site.0, &empty_site.1)
             .context("the run without movers failed")?;
-
-    let report_path = args
-        .report
-        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.json")));
-    let plot_path = args
-        .plot
-        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.svg")));
-    for p in [
-        Some(&report_path),
-        Some(&plot_path),
-        args.robots.trace.as_ref(),
-    ]
-    .into_iter()
-    .flatten()
-    {
-        super::create_parent(p)?;
-    }
-    super::write_report(&report, &report_path)?;
-    super::replace(&plot_path, |partial| {
-        hil_sim::plot::write_svg(&world, &report, partial)
-            .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", plot_path.display()))
-    })?;
-    if let Some(path) = &args.robots.trace {
-        super::write_trace(&world, path)?;
-    }
+    let (report_path, plot_path) = write_outputs(&args, &name, &world, &report)?;
     let recording = match recording {
         Some(r) => r,
-        None => Recording::create(&world, &mcap_partial),
+        None => Recording::create(&world, &super::partial_path(&mcap_path)),
     };
     recording
         .and_then(|r| r.finish(&world, &report))
         .map_err(anyhow::Error::msg)?;
-    std::fs::rename(&mcap_partial, &mcap_path)
+    std::fs::rename(super::partial_path(&mcap_path), &mcap_path)
         .with_context(|| format!("cannot write {}", mcap_path.display()))?;
     print_table(&report, &report_path, &plot_path, &mcap_path);
-    let interrupted = interrupted.load(Ordering::SeqCst);
     let outcome = super::outcome::Outcome::of(&world.station, interrupted);
     if let Some(console) = console.as_ref().filter(|c| c.alive()) {
         let last = crate::live::console::snapshot(&world.station, world.base_ms());
@@ -238,6 +124,187 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
         );
     }
     Ok(outcome)
+}
+
+/// The scenario with the command line's faults (validated again), its layout written if
+/// asked, and the simulation's options.
+fn prepare(args: &SimArgs) -> anyhow::Result<(base_station::scenario::Scenario, SimOptions)> {
+    let mut scenario = super::load_scenario(&args.scenario)?;
+    for text in &args.faults {
+        scenario.faults.push(parse_fault(text)?);
+    }
+    if let Err(problems) = scenario.validate() {
+        let lines: Vec<String> = problems
+            .iter()
+            .map(|(field, message)| format!("--fault: field `{field}`: {message}"))
+            .collect();
+        anyhow::bail!("{}", lines.join("\n"));
+    }
+    if let Some(path) = &args.layout {
+        super::create_parent(path)?;
+        crate::live::recording::layout::write(&scenario, path)?;
+    }
+    let mut options = SimOptions::new(args.robots.seed.unwrap_or(scenario.sim.seed));
+    options.firmware = args.robots.firmware.into();
+    options.realtime = args.realtime;
+    if let Some(b) = args.baseline {
+        options.movers = b.into();
+    }
+    Ok((scenario, options))
+}
+
+/// The report, the figure and the trace, where asked (or beside the scenario's name in
+/// `out/`): the report's and the figure's paths.
+fn write_outputs(
+    args: &SimArgs,
+    name: &str,
+    world: &World,
+    report: &Report,
+) -> anyhow::Result<(PathBuf, PathBuf)> {
+    let report_path = args
+        .report
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.json")));
+    let plot_path = args
+        .plot
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("out/{name}.svg")));
+    for p in [
+        Some(&report_path),
+        Some(&plot_path),
+        args.robots.trace.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        super::create_parent(p)?;
+    }
+    super::write_report(report, &report_path)?;
+    super::replace(&plot_path, |partial| {
+        hil_sim::plot::write_svg(world, report, partial)
+            .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", plot_path.display()))
+    })?;
+    if let Some(path) = &args.robots.trace {
+        super::write_trace(world, path)?;
+    }
+    Ok((report_path, plot_path))
+}
+
+/// What watches a run as it goes: the terminal's bar, the recording (fed on a thread of
+/// its own, to a partial file renamed into place at the end: an interrupted run never
+/// truncates the last one), the console and the live stream, and Ctrl-C.
+struct Watch {
+    bar: indicatif::ProgressBar,
+    end_s: f64,
+    console: Option<crate::live::console::Console>,
+    live: Option<crate::live::recording::LiveRecording>,
+    live_sent: usize,
+    recording: Option<Result<Recording, String>>,
+    mcap_partial: PathBuf,
+    interrupted: Arc<AtomicBool>,
+}
+
+/// What [`Watch::close`] hands back: the console, whether the run was interrupted, the
+/// recording.
+type Watched = (
+    Option<crate::live::console::Console>,
+    bool,
+    Option<Result<Recording, String>>,
+);
+
+impl Watch {
+    fn open(
+        args: &SimArgs,
+        scenario: &base_station::scenario::Scenario,
+        mcap_path: &Path,
+    ) -> anyhow::Result<Self> {
+        // Simulated time on a terminal (stderr); nothing when stderr is not one.
+        let bar = indicatif::ProgressBar::new(1000);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} simulating {msg} [{bar:30}] {elapsed}",
+            )
+            .expect("a valid template")
+            .progress_chars("=> "),
+        );
+        let live = match args.serve.live {
+            Some(addr) => Some(crate::live::recording::LiveRecording::create(
+                scenario,
+                None,
+                Some(addr),
+                &args.serve.live_origin,
+                scenario.robots.iter().map(|r| r.id),
+            )?),
+            None => None,
+        };
+        // In real time, Ctrl-C / SIGTERM end the run early; its report, figure and
+        // recording are written as for any end (exit code 4).
+        let interrupted = Arc::new(AtomicBool::new(false));
+        if args.realtime {
+            let flag = interrupted.clone();
+            ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
+                .context("installing Ctrl-C")?;
+        }
+        Ok(Self {
+            bar,
+            end_s: scenario.sim.duration_s,
+            console: crate::live::console::Console::open(args.serve.console, scenario)?,
+            live,
+            live_sent: 0,
+            recording: None,
+            mcap_partial: super::partial_path(mcap_path),
+            interrupted,
+        })
+    }
+
+    /// After each physics step.
+    fn step(&mut self, world: &mut World) {
+        match &mut self.recording {
+            None => self.recording = Some(Recording::create(world, &self.mcap_partial)),
+            Some(Ok(r)) if world.t_us.is_multiple_of(Recording::FEED_EVERY_US) => r.feed(world),
+            Some(_) => {}
+        }
+        world.stop_requested |= self.interrupted.load(Ordering::SeqCst);
+        let t = world.t_us as f64 / 1e6;
+        let permille = (t / self.end_s.max(1e-9) * 1000.0) as u64;
+        if permille != self.bar.position() {
+            self.bar.set_position(permille);
+            self.bar.set_message(format!("{t:.0} s"));
+        }
+        if let Some(console) = self.console.as_ref().filter(|c| c.alive()) {
+            let now_ms = world.base_ms();
+            for command in console.commands() {
+                world.station.operator(command, now_ms);
+            }
+            if world.t_us.is_multiple_of(100_000) {
+                let mut snapshot = crate::live::console::snapshot(&world.station, now_ms);
+                snapshot["movers"] = movers_json(world);
+                console.publish(&snapshot);
+            }
+        }
+        if let Some(live) = self.live.as_mut() {
+            // What went on the air since the last step: the station's as `base`, the rest
+            // as the station heard it (`air`).
+            for (t_us, from, bytes) in &world.transmitted[self.live_sent..] {
+                live.radio(if *from == 0 { "base" } else { "air" }, bytes, t_us * 1000);
+            }
+            self.live_sent = world.transmitted.len();
+            if world.t_us.is_multiple_of(100_000) {
+                live.station(&world.station, world.base_ms(), world.t_us * 1000);
+                live.scene(&world.station, world.base_ms(), world.t_us * 1000);
+            }
+        }
+    }
+
+    /// Ends the live stream and the bar.
+    fn close(self) -> anyhow::Result<Watched> {
+        if let Some(live) = self.live {
+            live.close()?;
+        }
+        self.bar.finish_and_clear();
+        let interrupted = self.interrupted.load(Ordering::SeqCst);
+        Ok((self.console, interrupted, self.recording))
+    }
 }
 
 // Writes to stdout, ignoring a closed pipe (`| head`) instead of panicking.
@@ -258,6 +325,43 @@ fn num(v: Option<f64>) -> String {
     v.map_or("—".to_string(), |v| format!("{v:.2}"))
 }
 
+/// The per-robot rows of the summary: label, figure, the paper's (leader / follower 1 /
+/// follower 2).
+type Row = (&'static str, fn(&RobotReport) -> Option<f64>, &'static str);
+const ROWS: [Row; 7] = [
+    (
+        "average velocity (m/s)",
+        |x| Some(x.avg_speed_mps),
+        "0.40 / 0.39 / 0.41",
+    ),
+    (
+        "average |angular velocity| (rad/s)",
+        |x| Some(x.avg_abs_omega_radps),
+        "0.60 / 0.59 / 0.61",
+    ),
+    (
+        "average |ω| on straight legs (rad/s)",
+        |x| x.straight_avg_abs_omega_radps,
+        "",
+    ),
+    (
+        "max tracking error after join (m)",
+        |x| x.max_tracking_error_m,
+        "— / 0.35 / 0.34",
+    ),
+    ("joined at (s)", |x| x.joined_at_s, ""),
+    (
+        "p95 tracking error after join (m)",
+        |x| x.p95_tracking_error_m,
+        "",
+    ),
+    (
+        "stable max tracking error (m)",
+        |x| x.stable_max_tracking_error_m,
+        "< 0.1 (stable phases)",
+    ),
+];
+
 fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Path) {
     let rtf = if r.wall_time_s > 0.0 {
         r.sim_time_s / r.wall_time_s
@@ -277,76 +381,34 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Pat
         Some(t) => outln!("goal reached after {t:.1} s"),
         None => outln!("goal NOT reached"),
     }
-    let names: Vec<String> = r
-        .robots
-        .iter()
-        .map(|x| format!("{} {}", x.role, x.id))
-        .collect();
+    print_robots(r);
+    print_run(r);
+    outln!(
+        "report {} · figure {} · recording {}",
+        report_path.display(),
+        plot_path.display(),
+        mcap_path.display()
+    );
+}
+
+/// The per-robot figures beside the paper's.
+fn print_robots(r: &Report) {
     out!("{:<34}", "");
-    for n in &names {
-        out!("{n:>12}");
+    for x in &r.robots {
+        out!("{:>12}", format!("{} {}", x.role, x.id));
     }
     outln!("   paper (L / F1 / F2)");
-    let row = |label: &str, values: Vec<String>, paper: &str| {
+    for (label, figure, paper) in ROWS {
         out!("{label:<34}");
-        for v in values {
-            out!("{v:>12}");
+        for x in &r.robots {
+            out!("{:>12}", num(figure(x)));
         }
         outln!("   {paper}");
-    };
-    row(
-        "average velocity (m/s)",
-        r.robots
-            .iter()
-            .map(|x| num(Some(x.avg_speed_mps)))
-            .collect(),
-        "0.40 / 0.39 / 0.41",
-    );
-    row(
-        "average |angular velocity| (rad/s)",
-        r.robots
-            .iter()
-            .map(|x| num(Some(x.avg_abs_omega_radps)))
-            .collect(),
-        "0.60 / 0.59 / 0.61",
-    );
-    row(
-        "average |ω| on straight legs (rad/s)",
-        r.robots
-            .iter()
-            .map(|x| num(x.straight_avg_abs_omega_radps))
-            .collect(),
-        "",
-    );
-    row(
-        "max tracking error after join (m)",
-        r.robots
-            .iter()
-            .map(|x| num(x.max_tracking_error_m))
-            .collect(),
-        "— / 0.35 / 0.34",
-    );
-    row(
-        "joined at (s)",
-        r.robots.iter().map(|x| num(x.joined_at_s)).collect(),
-        "",
-    );
-    row(
-        "p95 tracking error after join (m)",
-        r.robots
-            .iter()
-            .map(|x| num(x.p95_tracking_error_m))
-            .collect(),
-        "",
-    );
-    row(
-        "stable max tracking error (m)",
-        r.robots
-            .iter()
-            .map(|x| num(x.stable_max_tracking_error_m))
-            .collect(),
-        "< 0.1 (stable phases)",
-    );
+    }
+}
+
+/// The run's contacts, movers, shape changes and link.
+fn print_run(r: &Report) {
     outln!(
         "collisions {} · min obstacle clearance {:.2} m · min robot separation {:.2} m · convergence {}",
         r.collisions,
@@ -382,12 +444,6 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Pat
         r.link.frames_sent,
         r.link.frames_delivered,
         r.link.frames_rejected
-    );
-    outln!(
-        "report {} · figure {} · recording {}",
-        report_path.display(),
-        plot_path.display(),
-        mcap_path.display()
     );
 }
 

@@ -231,7 +231,27 @@ pub fn street(seed: u64, followers: usize) -> Generated {
     let mut r = rng(2, seed);
     let width: f64 = r.random_range(9.0..12.0);
     let half = width / 2.0;
-    // The centre line: legs of 14–20 m turning by ±20–45° (segments as thin blocks).
+    let pts = centre_line(&mut r, followers);
+    let mut b = Builder::new({
+        let g = pts[pts.len() - 1] - (pts[pts.len() - 1] - pts[pts.len() - 2]).normalize() * 4.0;
+        [g.x, g.y]
+    });
+    street_walls(&mut b, &pts, half);
+    pinches(&mut b, &mut r, &pts, half);
+    let start = pts[0] + (pts[1] - pts[0]).normalize() * (5.0 + 1.5 * followers as f64);
+    let deg = (pts[1] - pts[0]).y.atan2((pts[1] - pts[0]).x).to_degrees();
+    if followers > 2 {
+        // A V this wide does not fit the street: the fleet starts in its line.
+        b.fleet_in_line([start.x, start.y], deg, followers);
+    } else {
+        b.fleet([start.x, start.y], deg, followers);
+    }
+    b.build(&format!("street-{followers}f-seed{seed}"), true)
+}
+
+/// A street's centre line: legs of 14–20 m turning by ±20–45°, the first longer by the
+/// formation's length.
+fn centre_line(r: &mut ChaCha8Rng, followers: usize) -> Vec<glam::DVec2> {
     let mut pts = vec![glam::DVec2::new(0.0, 0.0)];
     let mut heading: f64 = 0.0;
     let legs = r.random_range(3..=4);
@@ -248,38 +268,40 @@ pub fn street(seed: u64, followers: usize) -> Generated {
         heading += if r.random_bool(0.5) { turn } else { -turn };
         heading = heading.clamp(-1.2, 1.2);
     }
-    let mut b = Builder::new({
-        let g = pts[pts.len() - 1] - (pts[pts.len() - 1] - pts[pts.len() - 2]).normalize() * 4.0;
-        [g.x, g.y]
-    });
-    // Walls: each leg's two sides as quadrilaterals 1 m thick, mitred at the joints.
-    let normal_at = |i: usize| -> glam::DVec2 {
-        let d_in = if i > 0 {
-            (pts[i] - pts[i - 1]).normalize()
-        } else {
-            (pts[1] - pts[0]).normalize()
-        };
-        let d_out = if i + 1 < pts.len() {
-            (pts[i + 1] - pts[i]).normalize()
-        } else {
-            d_in
-        };
-        let n = (d_in + d_out).normalize().perp();
-        n / n.dot(d_in.perp()).max(0.5)
+    pts
+}
+
+/// The unit normal at centre-line point `i`, mitred at the joints.
+fn mitred_normal(pts: &[glam::DVec2], i: usize) -> glam::DVec2 {
+    let d_in = if i > 0 {
+        (pts[i] - pts[i - 1]).normalize()
+    } else {
+        (pts[1] - pts[0]).normalize()
     };
+    let d_out = if i + 1 < pts.len() {
+        (pts[i + 1] - pts[i]).normalize()
+    } else {
+        d_in
+    };
+    let n = (d_in + d_out).normalize().perp();
+    n / n.dot(d_in.perp()).max(0.5)
+}
+
+/// Each leg's two sides as quadrilaterals 1 m thick, mitred at the joints, `half` the
+/// street's width off its centre line; the ends closed.
+fn street_walls(b: &mut Builder, pts: &[glam::DVec2], half: f64) {
     for i in 0..pts.len() - 1 {
         for side in [1.0, -1.0] {
-            let a = pts[i] + normal_at(i) * half * side;
-            let c = pts[i + 1] + normal_at(i + 1) * half * side;
-            let a2 = pts[i] + normal_at(i) * (half + 1.0) * side;
-            let c2 = pts[i + 1] + normal_at(i + 1) * (half + 1.0) * side;
+            let a = pts[i] + mitred_normal(pts, i) * half * side;
+            let c = pts[i + 1] + mitred_normal(pts, i + 1) * half * side;
+            let a2 = pts[i] + mitred_normal(pts, i) * (half + 1.0) * side;
+            let c2 = pts[i + 1] + mitred_normal(pts, i + 1) * (half + 1.0) * side;
             b.polygon(&[[a.x, a.y], [c.x, c.y], [c2.x, c2.y], [a2.x, a2.y]]);
         }
     }
-    // Ends closed.
     for (i, j) in [(0, 1), (pts.len() - 1, pts.len() - 2)] {
         let d = (pts[i] - pts[j]).normalize();
-        let n = normal_at(i);
+        let n = mitred_normal(pts, i);
         let a = pts[i] + n * (half + 1.0) + d * 0.2;
         let c = pts[i] - n * (half + 1.0) + d * 0.2;
         b.polygon(&[
@@ -289,7 +311,10 @@ pub fn street(seed: u64, followers: usize) -> Generated {
             [(a + d).x, (a + d).y],
         ]);
     }
-    // Pinches: on straight stretches, blocks from both walls leaving 2.4–3.5 m.
+}
+
+/// One to three pinches on straight stretches: blocks from both walls leaving 2.4–3.5 m.
+fn pinches(b: &mut Builder, r: &mut ChaCha8Rng, pts: &[glam::DVec2], half: f64) {
     let pinches = r.random_range(1..=3);
     for k in 0..pinches {
         let leg = 1 + k % (pts.len() - 2).max(1);
@@ -312,15 +337,6 @@ pub fn street(seed: u64, followers: usize) -> Generated {
             ]);
         }
     }
-    let start = pts[0] + (pts[1] - pts[0]).normalize() * (5.0 + 1.5 * followers as f64);
-    let deg = (pts[1] - pts[0]).y.atan2((pts[1] - pts[0]).x).to_degrees();
-    if followers > 2 {
-        // A V this wide does not fit the street: the fleet starts in its line.
-        b.fleet_in_line([start.x, start.y], deg, followers);
-    } else {
-        b.fleet([start.x, start.y], deg, followers);
-    }
-    b.build(&format!("street-{followers}f-seed{seed}"), true)
 }
 
 /// An open field with a bin right on the leader's way, 3–6 m ahead.

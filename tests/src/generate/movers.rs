@@ -75,7 +75,17 @@ fn passes(x: f64) -> f64 {
     START_S + (x - 3.0) / PACE
 }
 
-/// One to three people crossing a 8–12 m street in front of the formation.
+/// Walkers at 1–1.6 m/s, or a cyclist at 3–6 m/s one time in five.
+fn walker_or_cyclist(r: &mut impl Rng) -> (&'static str, f64) {
+    if r.random_bool(0.2) {
+        ("cyclist", r.random_range(3.0..6.0))
+    } else {
+        ("pedestrian", r.random_range(1.0..1.6))
+    }
+}
+
+/// One to three people (or a cyclist) crossing a 8–12 m street in front of the
+/// formation.
 pub fn crossing(seed: u64, social: bool) -> Generated {
     let mut r = rng(101, seed);
     let width: f64 = r.random_range(8.0..12.0);
@@ -85,18 +95,11 @@ pub fn crossing(seed: u64, social: bool) -> Generated {
     let h = width / 2.0 - 0.5;
     for _ in 0..r.random_range(1..=3) {
         let x = r.random_range(12.0..45.0);
-        let speed = r.random_range(1.0..1.6);
+        let (kind, speed) = walker_or_cyclist(&mut r);
         let side = if r.random_bool(0.5) { 1.0 } else { -1.0 };
         let start = passes(x) - h / speed + r.random_range(-6.0..3.0);
         let end = [x + r.random_range(-2.0..2.0), -side * h];
-        b.mover(
-            "pedestrian",
-            &[[x, side * h], end],
-            speed,
-            start,
-            social,
-            "",
-        );
+        b.mover(kind, &[[x, side * h], end], speed, start, social, "");
     }
     b.duration_s = 300.0;
     b.build(
@@ -134,26 +137,28 @@ pub fn oncoming_alley(seed: u64, social: bool) -> Generated {
     )
 }
 
-/// A cyclist coming up from behind at 4–6 m/s and overtaking the formation beside it.
-pub fn cyclist_overtaking(seed: u64, social: bool) -> Generated {
+/// Someone coming along a 10–14 m street, from behind the formation or toward it, on
+/// any lane across it (through any robot's slot, or between them): a walker at 1–2 m/s
+/// or a cyclist at 2–6 m/s, meeting the formation anywhere down the street.
+pub fn along_the_street(seed: u64, social: bool) -> Generated {
     let mut r = rng(103, seed);
+    let width: f64 = r.random_range(10.0..14.0);
     let mut b = Builder::new([52.0, 0.0]);
-    b.straight_street(0.0, 56.0, 12.0);
+    b.straight_street(0.0, 56.0, width);
     b.fleet([3.0, 0.0], 0.0, 2);
-    let lane = r.random_range(3.3..4.5) * if r.random_bool(0.5) { 1.0 } else { -1.0 };
-    let speed = r.random_range(4.0..6.0);
-    let start = r.random_range(5.0..60.0);
-    b.mover(
-        "cyclist",
-        &[[-3.0, lane], [58.0, lane]],
-        speed,
-        start,
-        social,
-        "",
-    );
+    let h = width / 2.0 - 0.5;
+    let lane = r.random_range(-h..h);
+    let speed: f64 = r.random_range(1.0..6.0);
+    let kind = if speed < 2.0 { "pedestrian" } else { "cyclist" };
+    let meet = r.random_range(10.0..45.0);
+    let behind = r.random_bool(0.5);
+    let (from, to) = if behind { (-3.0, 58.0) } else { (58.0, -3.0) };
+    let start = passes(meet) - (meet - from).abs() / speed + r.random_range(-3.0..3.0);
+    b.mover(kind, &[[from, lane], [to, lane]], speed, start, social, "");
     b.duration_s = 300.0;
+    let way = if behind { "behind" } else { "ahead" };
     b.build(
-        &format!("cyclist-{}-seed{seed}", behavior_name(social)),
+        &format!("along-{way}-{}-seed{seed}", behavior_name(social)),
         true,
     )
 }
@@ -183,7 +188,8 @@ pub fn car_pulling_out(seed: u64) -> Generated {
     b.build(&format!("car-pulling-out-seed{seed}"), true)
 }
 
-/// A person walks into the formation's way and stands there 20 s, then walks on.
+/// A person walks into the street (anywhere across it, the formation's way or beside
+/// it) and stands there 10–30 s, then walks on.
 pub fn standing_person(seed: u64, social: bool) -> Generated {
     let mut r = rng(105, seed);
     let width: f64 = r.random_range(6.0..10.0);
@@ -193,15 +199,16 @@ pub fn standing_person(seed: u64, social: bool) -> Generated {
     let h = width / 2.0 - 0.5;
     let x = r.random_range(15.0..35.0);
     let side = if r.random_bool(0.5) { 1.0 } else { -1.0 };
-    let stand = [x, r.random_range(-0.5..0.5)];
+    let stand = [x, r.random_range(-(h - 0.5)..(h - 0.5))];
     let start = passes(x) - r.random_range(8.0..25.0);
+    let pause = r.random_range(10.0..30.0);
     b.mover(
         "pedestrian",
         &[[x, side * h], stand, [x, -side * h]],
-        1.2,
+        r.random_range(1.0..1.4),
         start,
         social,
-        "pauses = [{ at = 1, for_s = 20.0 }]",
+        &format!("pauses = [{{ at = 1, for_s = {pause:.1} }}]"),
     );
     b.duration_s = 300.0;
     b.build(
@@ -231,6 +238,18 @@ pub fn plaza_crowd(seed: u64, density: f64, social: bool) -> Generated {
         &format!("plaza-{density}-{}-seed{seed}", behavior_name(social)),
         true,
     )
+}
+
+/// A social crowd of any density from 0.05 to 0.2 persons/m² (the densities where the
+/// goal is due): between the fixed densities the line turns back over itself.
+pub fn plaza_any_social(seed: u64) -> Generated {
+    let mut r = rng(108, seed);
+    let density = (r.random_range(0.05..0.2) * 100.0_f64).round() / 100.0;
+    let mut g = plaza_crowd(seed, density, true);
+    let name = format!("plaza-any-social-seed{seed}");
+    g.toml = g.toml.replacen(&g.name, &name, 1);
+    g.name = name;
+    g
 }
 
 /// A street with things the map does not hold (a van, bins) and people crossing it.

@@ -46,8 +46,8 @@ use crate::geometry::cells::{cell_of, CellIndex};
 /// Hits this close belong to one cluster, m.
 pub const LINK_M: f64 = 0.45;
 /// A track takes a cluster this far from where it was predicted, plus 3σ, m; never
-/// farther than [`MAX_GATE_M`]. In a crowd people walk a metre apart: 0.8 m and 2.5 m
-/// (until 2026-12-04) let tracks take their neighbours' clusters.
+/// farther than [`MAX_GATE_M`]. In a crowd people walk a metre apart: a gate of 0.8 m
+/// lets tracks take their neighbours' clusters.
 pub const GATE_M: f64 = 0.3;
 pub const MAX_GATE_M: f64 = 1.2;
 /// A track not seen for this long ends, ms.
@@ -87,9 +87,9 @@ pub const STILL_MS: u32 = 500;
 /// A small one must stand this long (a bin is still a bin two seconds later), ms.
 pub const STOPPED_MS: u32 = 2000;
 /// One that moved before, this long: a person who stopped in the way, not one held up
-/// in a crowd for a few seconds (marked at 2 s, the people a crowd held up walled the
-/// plaza off for the line of robots: "no route" on `plaza-0.1-social-seed1`). Until then
-/// the track stays a mover standing, which the leader yields to, ms.
+/// in a crowd for a few seconds (marked at 2 s, the people a crowd holds up wall a plaza
+/// off for the line of robots). Until then the track stays a mover standing, which the
+/// leader yields to, ms.
 pub const PAUSED_MS: u32 = 6000;
 /// A cluster this long or longer is marked at once, before it is judged (a wall, a van
 /// across the street; people side by side in a crowd are shorter), m.

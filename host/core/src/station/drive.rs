@@ -33,8 +33,10 @@ impl BaseStation {
         (bodies, following): super::Robots<'_>,
         now_ms: u32,
     ) -> Decision {
-        let followers = self.model_followers(bodies, following);
+        let (ids, followers): (Vec<u16>, Vec<(Robot, Goal)>) =
+            self.model_followers(bodies, following).into_iter().unzip();
         let path = Path::new(&look.ahead);
+        let now_s = now_ms as f64 / 1000.0;
         let fleet = model::Fleet {
             leader: LeaderStart {
                 pose: leader.pose,
@@ -49,6 +51,7 @@ impl BaseStation {
             behind: &look.behind,
             formation: self.guidance.formation(),
             robot: &self.cfg.robot,
+            now_s,
         };
         let spec = self.movers.spec();
         let ctx = Context {
@@ -60,8 +63,8 @@ impl BaseStation {
             passing_share: spec.passing_share,
             crowded,
         };
-        let now_s = now_ms as f64 / 1000.0;
-        let decision = self.movers.decide(now_s, &fleet, movers, &ctx, &self.world);
+        let mut decision = self.movers.decide(now_s, &fleet, movers, &ctx, &self.world);
+        decision.held_followers = decision.choice.holds.iter().map(|k| ids[*k]).collect();
         if let Some(manner) = decision.announce {
             self.announce(manner, movers.len(), now_ms);
         }
@@ -72,13 +75,13 @@ impl BaseStation {
         decision
     }
 
-    /// Each follower in the model: as estimated now, making for what it was told last
-    /// period (a point), else its slot; one not following stands.
+    /// Each follower in the model (with its id): as estimated now, making for what it was
+    /// told last period (a point), else its slot; one not following stands.
     fn model_followers(
         &self,
         bodies: &[spacing::Body],
         following: &[spacing::Body],
-    ) -> Vec<(Robot, Goal)> {
+    ) -> Vec<(u16, (Robot, Goal))> {
         self.fleet
             .followers
             .iter()
@@ -90,7 +93,7 @@ impl BaseStation {
                     None if following.iter().any(|f| f.id == *id) => Goal::Slot(k),
                     None => Goal::Hold,
                 };
-                Some((Robot::new(b.position, b.heading, b.v), goal))
+                Some((*id, (Robot::new(b.position, b.heading, b.v), goal)))
             })
             .collect()
     }

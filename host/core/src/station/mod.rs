@@ -2,7 +2,8 @@
 //! it from a serial modem or UDP and the wall clock; the simulator drives it from the
 //! simulated radio and the simulated clock. Same code, same bytes.
 //!
-//! One step is a pipeline over rooms that each own one concern and return values:
+//! One step is a pipeline over rooms that each own one concern and return values
+//! (`docs/basestation.md` draws it):
 //!
 //! - `fleet`: what the robots reported (telemetry, faults, who is fresh, where the
 //!   leader is now); `radio`: bytes in and out over the authenticated link;
@@ -10,13 +11,16 @@
 //!   `operator`, a robot fault, the localization watch, a lost leader, a fleet still
 //!   assembling);
 //! - `guidance`: the planner and the formation manager (`look`, then `drive`);
-//! - `passing`: the route kept aside for people coming the other way down a narrow way;
-//!   `yielding`: the leader's pace among what moves, and `stepping_back` out of the way
-//!   of someone who does not see it;
-//! - `detour`: followers sent round what holds them; `spacing`: no robot driven into
-//!   another where its ring cannot see it;
-//! - `localize` with `fixes` and `fix_check`: fixes from the site's localization
-//!   forwarded and watched; [`crate::perception`]: what the scans found;
+//! - `model`: the one forward model of the fleet, the firmware's own laws and limits;
+//! - `movers/`: what each mover is expected to do (`prediction`), the leader's pace from
+//!   one ranking (`pace`), people who stopped passed behind (`lanes`), people coming along
+//!   the fleet's way passed aside (`oncoming`); `drive`: the pace and the leader's
+//!   command;
+//! - `robots/`: the robots among themselves (`spacing`, the leader's `way`, the
+//!   `line_order`, `detour`s) and the `desk` that keeps one order per follower;
+//!   `orders`: every room's proposals through it;
+//! - `fixes/`: fixes from the site's localization forwarded and watched;
+//!   [`crate::perception`]: what the scans found;
 //! - `events`: what the operator and the report are told; `smoothing`: the turn rate
 //!   the followers are told.
 
@@ -70,6 +74,11 @@ use crate::planner::{PlanPose, PlannerEvent, PlannerParams};
 /// Every robot as estimated this period (the leader among them), and of those the
 /// followers following.
 type Robots<'a> = (&'a [spacing::Body], &'a [spacing::Body]);
+
+/// What stands still is marked within this of the leader: the route is planned against
+/// what the formation reaches before it has moved on (people standing farther off have
+/// mostly walked on by then), m. The scanner tracks what moves much farther.
+const MARK_REACH_M: f64 = 8.0;
 
 /// Most robots one base station serves.
 pub const MAX_ROBOTS: usize = 1024;
@@ -367,6 +376,7 @@ impl BaseStation {
             .iter()
             .map(|(_, h, t)| (*h, Some(*t)))
             .chain(lanes.into_iter().map(|(h, t)| (h, Some(t))))
+            .filter(|(h, _)| h.distance(origin) <= MARK_REACH_M)
             .collect();
         let added = self.perception.mark(&marks, 0, now_ms);
         change.added = added.added;
@@ -437,12 +447,16 @@ impl BaseStation {
         let robots = (&bodies[..], &following[..]);
         // Leave only with the whole fleet: until then (or parked) the leader holds.
         let ready = self.fleet_ready(now_ms) && self.cfg.movers != MoverPolicy::Parked;
-        let round = self.give_orders(leader.pose, &look, &tracks, robots, ready, now_ms);
-        if !ready {
+        let decision = ready
+            .then(|| self.pace_among_movers(&leader, &look, &predicted, crowded, robots, now_ms));
+        let held = decision.as_ref().map(|d| &d.held_followers[..]);
+        let moving = (&tracks[..], crowded);
+        let round = self.give_orders(leader.pose, &look, moving, robots, held, now_ms);
+        let Some(decision) = decision else {
             self.hold_leader(&leader, now_ms);
             return;
-        }
-        self.keep_aside(leader.pose, &tracks, now_s);
+        };
+        self.keep_aside(leader.pose, moving, now_s);
         if let Some((at, radius)) = round {
             tracing::info!(
                 x = at.x,
@@ -452,7 +466,6 @@ impl BaseStation {
             let from = leader.pose.position;
             self.guidance.avoid(at, radius, from, now_s, &self.world);
         }
-        let decision = self.pace_among_movers(&leader, &look, &predicted, crowded, robots, now_ms);
         self.drive_leader(&leader, &look, &decision, &bodies, now_ms);
     }
 
@@ -589,12 +602,19 @@ impl BaseStation {
     }
 
     /// People coming the other way down a narrow way: the route keeps out of their way.
-    fn keep_aside(&mut self, leader: PlanPose, movers: &[TrackView], now_s: f64) {
+    fn keep_aside(
+        &mut self,
+        leader: PlanPose,
+        (movers, crowded): (&[TrackView], bool),
+        now_s: f64,
+    ) {
         let space = oncoming::Space {
             footprint: self.guidance.formation().spec().footprint,
             personal: self.cfg.yielding.personal_space_m,
         };
-        let discs = self.passing.step(leader, movers, &self.cfg.map, space);
+        let discs = self
+            .passing
+            .step(leader, (movers, crowded), &self.cfg.map, space);
         if discs.is_empty() {
             return;
         }

@@ -171,6 +171,8 @@ pub struct Fleet<'a> {
     pub behind: &'a [DVec2],
     pub formation: &'a FormationManager,
     pub robot: &'a RobotConfig,
+    /// The station's clock now, s: a shape change under way goes on in the rollout.
+    pub now_s: f64,
 }
 
 /// The fleet at one instant of a rollout: the leader first, then the followers in
@@ -206,10 +208,11 @@ pub fn rollout(fleet: &Fleet, target: f64, horizon_s: f64) -> Vec<Instant> {
         let omega = math::wrap_angle((pose.heading - heading) as f32) / dt as f32;
         heading = pose.heading;
         let leader = snapshot(pose, v, omega);
-        let behind = (fleet.formation.blend() > 0.0).then(|| fleet.ahead.behind(s, l.pose, trail));
+        let blend = fleet.formation.blend_at(fleet.now_s + t);
+        let behind = (blend > 0.0).then(|| fleet.ahead.behind(s, l.pose, trail));
         let behind = behind.as_deref().unwrap_or(&[]);
         for (f, (_, goal)) in followers.iter_mut().zip(fleet.followers) {
-            let asked = law(fleet, &leader, behind, f, *goal);
+            let asked = law(fleet, &leader, behind, blend, f, *goal);
             f.drive(fleet.robot, asked, dt as f32);
         }
         let mut robots = Vec::with_capacity(followers.len() + 1);
@@ -234,8 +237,16 @@ fn snapshot(pose: PlanPose, v: f64, omega: f32) -> LeaderSnapshot {
     }
 }
 
-/// What follower `f`'s firmware asks this step for `goal`, the leader at `leader`.
-fn law(fleet: &Fleet, leader: &LeaderSnapshot, behind: &[DVec2], f: &Robot, goal: Goal) -> Twist {
+/// What follower `f`'s firmware asks this step for `goal`, the leader at `leader`, the
+/// shape at `blend`.
+fn law(
+    fleet: &Fleet,
+    leader: &LeaderSnapshot,
+    behind: &[DVec2],
+    blend: f64,
+    f: &Robot,
+    goal: Goal,
+) -> Twist {
     let d = fleet.robot.gains.d;
     match goal {
         Goal::Hold => Twist::ZERO,
@@ -247,20 +258,26 @@ fn law(fleet: &Fleet, leader: &LeaderSnapshot, behind: &[DVec2], f: &Robot, goal
             DETOUR_SPEED,
         ),
         Goal::Slot(k) => {
-            let slot = slot_ref(fleet, leader, behind, k);
+            let slot = slot_ref(fleet, leader, behind, blend, k);
             follower::lphi_law(leader, &f.pose, &slot, &fleet.robot.gains).unwrap_or(Twist::ZERO)
         }
     }
 }
 
 /// Slot `k` as (L, φ) from the leader, with its rates, as the firmware feeds them forward.
-fn slot_ref(fleet: &Fleet, leader: &LeaderSnapshot, behind: &[DVec2], k: usize) -> SlotRef {
+fn slot_ref(
+    fleet: &Fleet,
+    leader: &LeaderSnapshot,
+    behind: &[DVec2],
+    blend: f64,
+    k: usize,
+) -> SlotRef {
     let at = |l: &LeaderSnapshot| {
         let pose = PlanPose {
             position: DVec2::new(l.pose.x as f64, l.pose.y as f64),
             heading: l.pose.heading as f64,
         };
-        let p = fleet.formation.reference(k, pose, behind);
+        let p = fleet.formation.reference_at(k, pose, behind, blend);
         follower::as_slot(&l.pose, (p.x as f32, p.y as f32))
     };
     let (l, phi) = at(leader);
@@ -315,6 +332,7 @@ mod tests {
             behind: &[DVec2::ZERO, DVec2::new(-5.0, 0.0)],
             formation: &formation,
             robot: &robot,
+            now_s: 0.0,
         };
         rollout(&fleet, target, 3.0)
     }

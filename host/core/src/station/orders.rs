@@ -17,26 +17,36 @@ use crate::planner::PlanPose;
 
 impl BaseStation {
     /// Every follower's order this period, from every room, through the desk; sent.
-    /// `ready`: the fleet is running (only then may a follower be backed off the leader).
+    /// `tracks`: what moves, and whether it crowds the fleet's way. `held`: the followers
+    /// the leader's pace holds for people, while the fleet runs
+    /// (`None`: it does not yet; only then may a follower be backed off the leader).
     /// The disc the leader's way is to go round, where a follower has stood in it.
     pub(super) fn give_orders(
         &mut self,
         leader: PlanPose,
         look: &Look,
-        tracks: &[TrackView],
+        (tracks, crowded): (&[TrackView], bool),
         robots: Robots<'_>,
-        ready: bool,
+        held: Option<&[u16]>,
         now_ms: u32,
     ) -> Option<(DVec2, f64)> {
         let (bodies, following) = robots;
         let (mut proposals, slots) = self.detours(leader, &look.behind, now_ms);
-        proposals.extend(self.step_aside(following, bodies, tracks, now_ms));
+        let aside = self.step_aside(following, bodies, (tracks, crowded), now_ms);
         let mut avoid = None;
-        if ready {
+        if let Some(held) = held {
+            // One stepping out of someone's way is not held in it.
+            let held: Vec<u16> = held
+                .iter()
+                .copied()
+                .filter(|id| !aside.iter().any(|p| p.robot == *id))
+                .collect();
+            proposals.extend(self.hold_for_people(&held, following));
             let (backs, round) = self.back_off(look, robots, now_ms);
             proposals.extend(backs);
             avoid = round;
         }
+        proposals.extend(aside);
         let sent: Vec<(u16, DVec2)> = desk::best(&proposals)
             .into_values()
             .map(|p| (p.robot, p.point))
@@ -51,6 +61,19 @@ impl BaseStation {
         }
         self.orders = orders.iter().map(|o| (o.robot, o.point)).collect();
         avoid
+    }
+
+    /// The followers the leader's pace holds for people, each where it can stop.
+    fn hold_for_people(&self, held: &[u16], following: &[spacing::Body]) -> Vec<Proposal> {
+        following
+            .iter()
+            .filter(|f| held.contains(&f.id))
+            .map(|f| Proposal {
+                robot: f.id,
+                kind: Kind::Hold,
+                point: spacing::stop_point(f, self.cfg.control_offset, self.cfg.yield_brake),
+            })
+            .collect()
     }
 
     /// What a new order is logged and recorded as.
@@ -128,7 +151,7 @@ impl BaseStation {
         &mut self,
         following: &[spacing::Body],
         robots: &[spacing::Body],
-        movers: &[TrackView],
+        (movers, crowded): (&[TrackView], bool),
         now_ms: u32,
     ) -> Vec<Proposal> {
         let fleet = oncoming::Fleet {
@@ -139,6 +162,7 @@ impl BaseStation {
                 personal: self.cfg.yielding.personal_space_m,
             },
             offset: self.cfg.control_offset,
+            crowded,
         };
         let maps = oncoming::Maps {
             site: &self.cfg.map,

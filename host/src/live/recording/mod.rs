@@ -38,7 +38,7 @@ use foxglove::{
 pub struct LiveRecording {
     _ctx: Arc<Context>,
     /// The writer, the partial file it writes and the path it takes at the end.
-    writer: Option<(McapWriterHandle<BufWriter<std::fs::File>>, PathBuf, PathBuf)>,
+    writer: Option<Writer>,
     server: Option<WebSocketServerHandle>,
     radio: Arc<RawChannel>,
     events: Channel<Log>,
@@ -49,6 +49,9 @@ pub struct LiveRecording {
     events_logged: usize,
     scene: Scene,
 }
+
+/// The MCAP writer, the partial file it writes and the path it takes at the end.
+type Writer = (McapWriterHandle<BufWriter<std::fs::File>>, PathBuf, PathBuf);
 
 /// The scene channels a simulation's recording has too, fed from what the station knows.
 struct Scene {
@@ -96,46 +99,12 @@ impl LiveRecording {
         robots: impl IntoIterator<Item = u16>,
     ) -> anyhow::Result<Self> {
         let ctx = Context::new();
-        let writer = match mcap {
-            Some(path) => {
-                // Written beside, renamed into place when it closes: an interrupted run
-                // never leaves the last recording truncated.
-                let partial = crate::commands::partial_path(path);
-                let file = std::fs::File::create(&partial)
-                    .with_context(|| format!("cannot create {}", partial.display()))?;
-                let writer = McapWriter::new()
-                    .context(&ctx)
-                    .create(BufWriter::new(file))
-                    .with_context(|| format!("cannot write {}", partial.display()))?;
-                let metadata = base_station::recording::run_metadata(
-                    &scenario.name,
-                    None,
-                    "robots",
-                    std::time::SystemTime::now(),
-                );
-                writer
-                    .write_metadata(base_station::recording::METADATA_NAME, metadata)
-                    .with_context(|| format!("cannot write {}", partial.display()))?;
-                Some((writer, partial, path.to_path_buf()))
-            }
-            None => None,
-        };
-        let server = match live {
-            Some(addr) => {
-                // The server itself on the loopback only; the gate on `addr` checks Origin.
-                let server = WebSocketServer::new()
-                    .name("sweeper base station")
-                    .context(&ctx)
-                    .bind("127.0.0.1", 0)
-                    .start_blocking()
-                    .context("cannot start the Foxglove server")?;
-                let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
-                let bound = gate::start(addr, inner, origins)?;
-                eprintln!("live (Foxglove WebSocket): ws://{bound}");
-                Some(server)
-            }
-            None => None,
-        };
+        let writer = mcap
+            .map(|path| open_writer(&ctx, scenario, path))
+            .transpose()?;
+        let server = live
+            .map(|addr| open_server(&ctx, addr, origins))
+            .transpose()?;
         let radio = radio_channel(&ctx).map_err(anyhow::Error::msg)?;
         let events = events_channel(&ctx);
         let robots: Vec<u16> = robots.into_iter().collect();
@@ -147,36 +116,7 @@ impl LiveRecording {
             },
             now_ns(),
         );
-        let scene = Scene {
-            robots: ctx.channel_builder("/robots").build(),
-            frames: ctx.channel_builder(TF_TOPIC).build(),
-            states: robots
-                .iter()
-                .map(|id| {
-                    (
-                        *id,
-                        ctx.channel_builder(format!("/robot_{id}/state")).build(),
-                    )
-                })
-                .collect(),
-            routes: ctx.channel_builder("/route").build(),
-            shapes: ctx.channel_builder("/formation").build(),
-            tracks: ctx.channel_builder(TRACKS_TOPIC).build(),
-            sensed: ctx.channel_builder(SENSED_TOPIC).build(),
-            marks: Vec::new(),
-            marks_ms: None,
-            leader: scenario
-                .robots
-                .iter()
-                .find(|r| r.role == base_station::scenario::Role::Leader)
-                .map_or(0, |r| r.id),
-            footprint: scenario.robot.footprint_radius,
-            track_width: scenario.robot.track_width,
-            bodies_drawn: false,
-            route: None,
-            shape: "",
-            scene_ms: None,
-        };
+        let scene = Scene::new(&ctx, scenario, &robots);
         let links = robots
             .iter()
             .map(|id| {
@@ -283,6 +223,39 @@ impl LiveRecording {
 }
 
 impl Scene {
+    fn new(ctx: &Arc<Context>, scenario: &Scenario, robots: &[u16]) -> Self {
+        Self {
+            robots: ctx.channel_builder("/robots").build(),
+            frames: ctx.channel_builder(TF_TOPIC).build(),
+            states: robots
+                .iter()
+                .map(|id| {
+                    (
+                        *id,
+                        ctx.channel_builder(format!("/robot_{id}/state")).build(),
+                    )
+                })
+                .collect(),
+            routes: ctx.channel_builder("/route").build(),
+            shapes: ctx.channel_builder("/formation").build(),
+            tracks: ctx.channel_builder(TRACKS_TOPIC).build(),
+            sensed: ctx.channel_builder(SENSED_TOPIC).build(),
+            marks: Vec::new(),
+            marks_ms: None,
+            leader: scenario
+                .robots
+                .iter()
+                .find(|r| r.role == base_station::scenario::Role::Leader)
+                .map_or(0, |r| r.id),
+            footprint: scenario.robot.footprint_radius,
+            track_width: scenario.robot.track_width,
+            bodies_drawn: false,
+            route: None,
+            shape: "",
+            scene_ms: None,
+        }
+    }
+
     /// Each robot's frame and state from its telemetry, the robots' bodies (once) and
     /// the slots, the route when it changed, the shape when it changed, the tracks, the
     /// sensed marks when they changed.
@@ -427,4 +400,46 @@ impl Scene {
             );
         }
     }
+}
+
+/// The MCAP writer on a partial file beside `path` (renamed into place when it closes: an
+/// interrupted run never leaves the last recording truncated), opened with the run's
+/// metadata record.
+fn open_writer(ctx: &Arc<Context>, scenario: &Scenario, path: &Path) -> anyhow::Result<Writer> {
+    let partial = crate::commands::partial_path(path);
+    let file = std::fs::File::create(&partial)
+        .with_context(|| format!("cannot create {}", partial.display()))?;
+    let writer = McapWriter::new()
+        .context(ctx)
+        .create(BufWriter::new(file))
+        .with_context(|| format!("cannot write {}", partial.display()))?;
+    let metadata = base_station::recording::run_metadata(
+        &scenario.name,
+        None,
+        "robots",
+        std::time::SystemTime::now(),
+    );
+    writer
+        .write_metadata(base_station::recording::METADATA_NAME, metadata)
+        .with_context(|| format!("cannot write {}", partial.display()))?;
+    Ok((writer, partial, path.to_path_buf()))
+}
+
+/// The Foxglove server on the loopback only, behind the gate on `addr` that checks
+/// Origin.
+fn open_server(
+    ctx: &Arc<Context>,
+    addr: SocketAddr,
+    origins: &[String],
+) -> anyhow::Result<WebSocketServerHandle> {
+    let server = WebSocketServer::new()
+        .name("sweeper base station")
+        .context(ctx)
+        .bind("127.0.0.1", 0)
+        .start_blocking()
+        .context("cannot start the Foxglove server")?;
+    let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
+    let bound = gate::start(addr, inner, origins)?;
+    eprintln!("live (Foxglove WebSocket): ws://{bound}");
+    Ok(server)
 }

@@ -106,7 +106,7 @@ fn drain_radio(link: &mut Link) {
 #[embassy_executor::task]
 pub async fn body_task(spawner: Spawner) {
     let mut link = Link::open();
-    let mut frame = [0u8; protocol::body::MAX_BODY_FRAME + 2];
+    let mut frame: Frame = [0u8; protocol::body::MAX_BODY_FRAME + 2];
     let config = loop {
         if let Some(ToMcu::Config(c)) = link.receive(&mut frame) {
             break c;
@@ -122,37 +122,9 @@ pub async fn body_task(spawner: Spawner) {
     link.flush();
     let mut received = 0u32;
     loop {
-        let step = match link.receive(&mut frame) {
-            Some(ToMcu::Step(step)) => step,
-            Some(ToMcu::Inject(FirmwareFault::Panic)) => panic!("injected by the harness"),
-            Some(ToMcu::Inject(FirmwareFault::Hang)) => {
-                defmt::warn!("hanging, as the harness asked");
-                #[allow(clippy::empty_loop)]
-                loop {}
-            }
-            Some(_) => {
-                // Not formatted: that pulled in the body messages' defmt code, 556 B of flash.
-                defmt::warn!("unexpected body message outside a step: dropped");
-                continue;
-            }
-            None => continue,
-        };
+        let step = next_step(&mut link, &mut frame);
         clock::set(step.time_us);
-        while received != step.radio_rx_bytes {
-            match link.receive(&mut frame) {
-                Some(ToMcu::Radio(bytes)) => {
-                    radio::RECEIVED.write_all(bytes).await;
-                    received = received.wrapping_add(bytes.len() as u32);
-                }
-                _ => {
-                    defmt::error!("the step's radio bytes are missing");
-                    received = step.radio_rx_bytes;
-                }
-            }
-        }
-        while robot::RADIO_RX_BYTES.load(Ordering::Acquire) != received {
-            yield_now().await;
-        }
+        received = take_radio(&mut link, &mut frame, &step, received).await;
         if step.sensors.is_some() {
             critical_section::with(|cs| SENSORS.borrow(cs).set(step.sensors));
         }
@@ -164,28 +136,81 @@ pub async fn body_task(spawner: Spawner) {
                 yield_now().await;
             }
         }
-        // Let anything else the new time woke (the watchdog) run, and the transmit task
-        // write out what this step produced.
-        yield_now().await;
-        loop {
-            drain_radio(&mut link);
-            if crate::tasks::radio_idle() && radio::TRANSMITTED.is_empty() {
-                break;
-            }
-            yield_now().await;
-        }
-        let done = Done {
-            time_us: step.time_us,
-            radio_tx_bytes: robot::RADIO_TX_BYTES.load(Ordering::Acquire),
-            duty: critical_section::with(|cs| DUTY.borrow(cs).get()),
-            ticked: due,
-            step_cycles: robot::STEP_CYCLES.load(Ordering::Acquire),
-            rx_cycles: robot::RX_CYCLES.swap(0, Ordering::AcqRel),
-            rejects: robot::with_node(|node| node.link().stats().rejects).unwrap_or_default(),
-        };
-        link.send(&FromMcu::Done(done));
-        link.flush();
+        finish_step(&mut link, &step, due).await;
     }
+}
+
+/// A body frame's buffer.
+type Frame = [u8; protocol::body::MAX_BODY_FRAME + 2];
+
+/// The next `Step` from the harness (a fault it injects is carried out here).
+fn next_step(link: &mut Link, frame: &mut Frame) -> protocol::body::Step {
+    loop {
+        match link.receive(frame) {
+            Some(ToMcu::Step(step)) => return step,
+            Some(ToMcu::Inject(FirmwareFault::Panic)) => panic!("injected by the harness"),
+            Some(ToMcu::Inject(FirmwareFault::Hang)) => {
+                defmt::warn!("hanging, as the harness asked");
+                #[allow(clippy::empty_loop)]
+                loop {}
+            }
+            Some(_) => {
+                // Not formatted: that pulled in the body messages' defmt code, 556 B of flash.
+                defmt::warn!("unexpected body message outside a step: dropped");
+            }
+            None => {}
+        }
+    }
+}
+
+/// The step's radio bytes, handed to the radio task and taken by it; the count received
+/// so far.
+async fn take_radio(
+    link: &mut Link,
+    frame: &mut Frame,
+    step: &protocol::body::Step,
+    mut received: u32,
+) -> u32 {
+    while received != step.radio_rx_bytes {
+        match link.receive(frame) {
+            Some(ToMcu::Radio(bytes)) => {
+                radio::RECEIVED.write_all(bytes).await;
+                received = received.wrapping_add(bytes.len() as u32);
+            }
+            _ => {
+                defmt::error!("the step's radio bytes are missing");
+                received = step.radio_rx_bytes;
+            }
+        }
+    }
+    while robot::RADIO_RX_BYTES.load(Ordering::Acquire) != received {
+        yield_now().await;
+    }
+    received
+}
+
+/// Lets anything else the new time woke (the watchdog) run and the transmit task write
+/// out what this step produced; then `Done`.
+async fn finish_step(link: &mut Link, step: &protocol::body::Step, due: bool) {
+    yield_now().await;
+    loop {
+        drain_radio(link);
+        if crate::tasks::radio_idle() && radio::TRANSMITTED.is_empty() {
+            break;
+        }
+        yield_now().await;
+    }
+    let done = Done {
+        time_us: step.time_us,
+        radio_tx_bytes: robot::RADIO_TX_BYTES.load(Ordering::Acquire),
+        duty: critical_section::with(|cs| DUTY.borrow(cs).get()),
+        ticked: due,
+        step_cycles: robot::STEP_CYCLES.load(Ordering::Acquire),
+        rx_cycles: robot::RX_CYCLES.swap(0, Ordering::AcqRel),
+        rejects: robot::with_node(|node| node.link().stats().rejects).unwrap_or_default(),
+    };
+    link.send(&FromMcu::Done(done));
+    link.flush();
 }
 
 /// Logs and exits QEMU with 101. Neither the message nor the location: formatting them

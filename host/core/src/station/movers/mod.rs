@@ -38,7 +38,7 @@ pub enum Manner {
 }
 
 /// What the movers decided this period.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Decision {
     pub choice: Choice,
     /// The speed the leader makes for, m/s (negative: backing).
@@ -51,6 +51,10 @@ pub struct Decision {
     pub announce: Option<Manner>,
     /// Anything moved near: the leader gets going again as hard as its followers may.
     pub among_movers: bool,
+    /// The followers (by id) held where they can stop: they would still move in a
+    /// contact the chosen pace predicts (the station fills this in from the model's
+    /// order).
+    pub held_followers: Vec<u16>,
 }
 
 /// The station's movers room, from period to period.
@@ -113,6 +117,7 @@ impl Movers {
                 candidate: Candidate::Share(1.0),
                 key: pace::Key::default(),
                 clears: false,
+                holds: Vec::new(),
             }
         } else {
             pace::choose(fleet, movers, ctx, self.last, site)
@@ -135,6 +140,7 @@ impl Movers {
             avoid,
             announce: self.announce(now_s, manner),
             among_movers: !movers.is_empty(),
+            held_followers: Vec::new(),
         }
     }
 

@@ -1,9 +1,8 @@
 //! Keeping to the side for people coming the other way. In a narrow way (an alley, a
 //! passage between parked vans) someone walking toward the fleet passes the robots at
 //! whatever offset their way has: an oblivious walker 0.6 m off the middle of a 3 m alley
-//! grazed the line of robots standing in it, and every such walker came within 0.3 m of
-//! a robot (seeds 301–332). The scanner sees them 8 m off, some 4 s before they meet and
-//! before the yielding layer holds the leader for them. The leader's route then keeps out
+//! grazes a line of robots standing in it. The scanner sees them seconds before they
+//! meet, before the leader's pace holds it for them. The leader's route then keeps out
 //! of their way, on the far side of the narrow way, with the personal space where the map
 //! leaves room for it (as someone pushing a cart does), and each follower they are about
 //! to pass steps square to their way until they are past it: a follower driving the
@@ -27,6 +26,9 @@ const AHEAD_DEG: f64 = 30.0;
 /// Nearer than this the leader cannot get aside in time any more; the yielding layer
 /// holds it for them, m.
 const NEAREST_M: f64 = 4.0;
+/// Farther than this their way may still change: the route keeps aside once they are
+/// within it, m.
+const FARTHEST_M: f64 = 8.0;
 /// The route leaves the leader's way this far ahead of it (it cannot step sideways), m.
 const STEER_M: f64 = 2.0;
 /// A way is narrow where it is less than this wide across the robot's heading (the map's
@@ -46,6 +48,17 @@ const LEAST_STEP_M: f64 = 0.1;
 const WALL_MARGIN_M: f64 = 0.1;
 /// And from the other robots, beyond both footprints, m.
 const ROBOT_MARGIN_M: f64 = 0.1;
+/// Someone whose way runs through the leader and who reaches it sooner than this is
+/// stood for (the pace): the route cannot take it aside in time, s.
+const THROUGH_FROM_S: f64 = 1.5;
+/// The leader keeps this much of the lane of someone coming from behind free ahead of
+/// it, m.
+const THROUGH_LANE_M: f64 = 6.0;
+/// Someone's way runs through a follower where it comes this close to its footprint, m:
+/// the track's uncertainty and a step's margin.
+const THROUGH_M: f64 = 0.3;
+/// A person's footprint at least, m.
+const PERSON_RADIUS_M: f64 = 0.3;
 /// A follower this close to its place aside is there, m.
 const THERE_M: f64 = 0.1;
 /// A step aside ends after this, whatever happens, ms.
@@ -85,7 +98,7 @@ impl Passing {
     pub fn step(
         &mut self,
         leader: PlanPose,
-        movers: &[TrackView],
+        (movers, crowded): (&[TrackView], bool),
         site: &Map,
         space: Space,
     ) -> Vec<(DVec2, f64)> {
@@ -95,27 +108,37 @@ impl Passing {
             if self.planned.contains(&m.id) {
                 continue;
             }
-            let Some(along) = oncoming(leader, m, site, space) else {
-                continue;
+            let found = match oncoming(leader, m, site, space) {
+                Some(along) => {
+                    // Along the narrow way, as the leader faces it: a filter's heading is
+                    // off by several degrees, enough to bend the discs across an alley.
+                    let way = -DVec2::from_angle(leader.heading);
+                    let radius = m.radius + space.personal;
+                    let steps = ((along - STEER_M) / STEP_M).floor().max(0.0) as usize;
+                    (0..=steps)
+                        .map(|k| (m.position + way * (k as f64 * STEP_M), radius))
+                        .collect()
+                }
+                None if !crowded => through(leader, m, space),
+                None => Vec::new(),
             };
-            self.planned.insert(m.id);
-            // Along the narrow way, as the leader faces it: a filter's heading is off by
-            // several degrees, enough to bend the discs across a 3 m alley.
-            let way = -DVec2::from_angle(leader.heading);
-            let radius = m.radius + space.personal;
-            let steps = ((along - STEER_M) / STEP_M).floor().max(0.0) as usize;
-            discs.extend((0..=steps).map(|k| (m.position + way * (k as f64 * STEP_M), radius)));
+            if !found.is_empty() {
+                self.planned.insert(m.id);
+                discs.extend(found);
+            }
         }
         discs
     }
 
     /// One period: each follower whose place someone will pass within the personal space
     /// in the next `SOON_S`, coming along a narrow way (where it stands or between them:
-    /// the end of the line may still be outside the alley), steps aside, square to their
-    /// way, as far as the map and the other robots let it (at least `LEAST_STEP_M`),
-    /// until they are past it. Returns each follower stepping aside, the point for its
-    /// control point (`offset` ahead of its centre: the point lies the step's way on) and
-    /// whether the step just began.
+    /// the end of the line may still be outside the alley), or whose place someone's way
+    /// runs through anywhere, coming along the fleet's way from ahead or from behind
+    /// (away from a crowd: in one, people steer round the robots and everyone comes
+    /// along some way), steps aside, square to their way, as far as the map and the other
+    /// robots let it (at least `LEAST_STEP_M`), until they are past it. Returns each
+    /// follower stepping aside, the point for its control point (`offset` ahead of its
+    /// centre: the point lies the step's way on) and whether the step just began.
     pub fn step_aside(
         &mut self,
         now_ms: u32,
@@ -184,16 +207,23 @@ pub struct Fleet<'a> {
     pub space: Space,
     /// How far ahead of a follower's centre its control point is, m.
     pub offset: f64,
+    /// Movers crowd the fleet's way.
+    pub crowded: bool,
 }
 
-/// How far `m` still walks before it is abreast of `at`, if it comes against `heading` (a
-/// follower's, as it was when it stepped aside) and gets there within `SOON_S`.
+/// How far `m` still walks before it is abreast of `at`, if it comes along `heading` (a
+/// follower's, as it was when it stepped aside) from ahead against it, or from behind
+/// with it, and gets there within `SOON_S`.
 fn coming(at: DVec2, heading: DVec2, m: &TrackView) -> Option<f64> {
-    if !against(m, heading) {
-        return None;
-    }
     let along = (m.position - at).dot(heading);
-    (along > 0.0 && along < m.velocity.length() * SOON_S).then_some(along)
+    let toward = if against(m, heading) {
+        along
+    } else if against(m, -heading) {
+        -along
+    } else {
+        return None;
+    };
+    (toward > 0.0 && toward < m.velocity.length() * SOON_S).then_some(toward)
 }
 
 /// Where follower `f` steps to for `m`, if `m` will pass it too close down a narrow way and
@@ -202,11 +232,24 @@ fn step_for(f: &Body, m: &TrackView, fleet: &Fleet, maps: Maps) -> Option<DVec2>
     let heading = DVec2::from_angle(f.heading);
     coming(f.position, heading, m)?;
     let space = fleet.space;
-    let way = -heading;
+    // Along the fleet's way, as the follower faces it: a filter's heading is off by
+    // several degrees.
+    let way = if against(m, heading) {
+        -heading
+    } else {
+        heading
+    };
     let from = f.position - m.position;
     let offset = way.perp_dot(from);
-    let want = space.footprint + m.radius + space.personal;
-    if offset.abs() >= want || !narrow_between(maps.site, f.position, m.position, heading) {
+    let narrow = narrow_between(maps.site, f.position, m.position, heading);
+    let want = if narrow {
+        space.footprint + m.radius + space.personal
+    } else if !fleet.crowded {
+        space.footprint + m.radius.max(PERSON_RADIUS_M) + THROUGH_M
+    } else {
+        return None;
+    };
+    if offset.abs() >= want {
         return None;
     }
     let out = way.perp() * if offset >= 0.0 { 1.0 } else { -1.0 };
@@ -258,7 +301,8 @@ fn oncoming(leader: PlanPose, m: &TrackView, site: &Map, space: Space) -> Option
     let way = -heading;
     let to = m.position - leader.position;
     let distance = to.length();
-    if distance < NEAREST_M || to.dot(heading) < distance * AHEAD_DEG.to_radians().cos() {
+    let ahead = to.dot(heading) >= distance * AHEAD_DEG.to_radians().cos();
+    if !(NEAREST_M..=FARTHEST_M).contains(&distance) || !ahead {
         return None;
     }
     // Their way passes the leader this far to the side.
@@ -268,6 +312,38 @@ fn oncoming(leader: PlanPose, m: &TrackView, site: &Map, space: Space) -> Option
         return None;
     }
     narrow_between(site, leader.position, m.position, heading).then(|| back.dot(way))
+}
+
+/// Discs along the way of `m`, coming along the leader's way from ahead or from behind,
+/// where that way runs through the leader and they reach it in [`THROUGH_FROM_S`] to
+/// `SOON_S`, from [`NEAREST_M`] off or farther: the route keeps out of their lane (from ahead, on their side of the leader
+/// up to `STEER_M` before it; from behind, ahead of the leader where they ride on).
+fn through(leader: PlanPose, m: &TrackView, space: Space) -> Vec<(DVec2, f64)> {
+    let heading = DVec2::from_angle(leader.heading);
+    let way = if against(m, heading) {
+        -heading
+    } else if against(m, -heading) {
+        heading
+    } else {
+        return Vec::new();
+    };
+    let to_leader = (leader.position - m.position).dot(way);
+    let reach_s = to_leader / m.velocity.length();
+    let offset = way.perp_dot(leader.position - m.position).abs();
+    let radius = m.radius.max(PERSON_RADIUS_M) + THROUGH_M;
+    let far_enough = to_leader >= NEAREST_M && reach_s >= THROUGH_FROM_S;
+    if !far_enough || reach_s > SOON_S || offset >= space.footprint + radius {
+        return Vec::new();
+    }
+    let (from, to) = if way.dot(heading) < 0.0 {
+        (0.0, to_leader - STEER_M)
+    } else {
+        (to_leader + STEER_M, to_leader + STEER_M + THROUGH_LANE_M)
+    };
+    let steps = ((to - from) / STEP_M).floor().max(0.0) as usize;
+    (0..=steps)
+        .map(|k| (m.position + way * (from + k as f64 * STEP_M), radius))
+        .collect()
 }
 
 /// Whether the way from `a` to `b`, along `heading`, is narrow somewhere.
@@ -311,31 +387,42 @@ mod tests {
     #[test]
     fn someone_coming_down_the_alley_is_passed_aside_once() {
         let mut p = Passing::default();
-        let w = walker(7, 32.0, 0.6, -1.2, 0.0);
-        let discs = p.step(LEADER, &[w], &alley(), SPACE);
+        let w = walker(7, 19.0, 0.6, -1.2, 0.0);
+        let discs = p.step(LEADER, (&[w], false), &alley(), SPACE);
         // From them to 2 m ahead of the leader, along their way, with the personal space.
-        assert_eq!(discs.first(), Some(&(DVec2::new(32.0, 0.6), 1.05)));
+        assert_eq!(discs.first(), Some(&(DVec2::new(19.0, 0.6), 1.05)));
         let last = discs.last().unwrap().0;
         assert!((last.x - 14.0).abs() <= STEP_M && last.y == 0.6, "{last}");
         // Planned once, not every period.
-        assert!(p.step(LEADER, &[w], &alley(), SPACE).is_empty());
+        assert!(p.step(LEADER, (&[w], false), &alley(), SPACE).is_empty());
     }
 
     #[test]
     fn nobody_is_passed_aside_in_the_open_or_going_the_same_way_or_wide_of_the_fleet() {
         let mut p = Passing::default();
         let open = Map::new(Vec::new());
+        // In the open, coming at the leader but 6 s off: not yet.
         assert!(p
-            .step(LEADER, &[walker(1, 32.0, 0.6, -1.2, 0.0)], &open, SPACE)
+            .step(
+                LEADER,
+                (&[walker(1, 19.0, 0.6, -1.2, 0.0)], false),
+                &open,
+                SPACE
+            )
             .is_empty());
         let alley = alley();
-        let same_way = walker(2, 32.0, 0.6, 1.2, 0.0);
-        let crossing = walker(3, 32.0, 0.6, 0.0, 1.2);
-        let wide = walker(4, 32.0, 1.4, -1.2, 0.0);
+        let same_way = walker(2, 19.0, 0.6, 1.2, 0.0);
+        let crossing = walker(3, 19.0, 0.6, 0.0, 1.2);
+        let wide = walker(4, 19.0, 1.4, -1.2, 0.0);
         let near = walker(5, 15.0, 0.6, -1.2, 0.0);
-        let standing = walker(6, 32.0, 0.6, -0.1, 0.0);
-        for w in [same_way, crossing, wide, near, standing] {
-            assert!(p.step(LEADER, &[w], &alley, SPACE).is_empty(), "{}", w.id);
+        let standing = walker(6, 19.0, 0.6, -0.1, 0.0);
+        let far = walker(7, 32.0, 0.6, -1.2, 0.0);
+        for w in [same_way, crossing, wide, near, standing, far] {
+            assert!(
+                p.step(LEADER, (&[w], false), &alley, SPACE).is_empty(),
+                "{}",
+                w.id
+            );
         }
     }
 
@@ -364,6 +451,7 @@ mod tests {
             robots: &f,
             space: SPACE,
             offset: 0.2,
+            crowded: false,
         };
         let w = walker(7, 25.0, 0.6, -1.2, 0.0);
         // 0.6 m off its way, 4 s off: it steps 0.75 m to the other side (0.3 + 0.25 + 0.8
@@ -393,6 +481,7 @@ mod tests {
             robots: &robots,
             space: SPACE,
             offset: 0.2,
+            crowded: false,
         };
         assert!(p.step_aside(0, &fleet, &[w], both(&alley())).is_empty());
         // A robot 0.9 m to its side: it steps 0.2 m, to 0.7 m from it.
@@ -403,6 +492,7 @@ mod tests {
             robots: &robots,
             space: SPACE,
             offset: 0.2,
+            crowded: false,
         };
         let (_, point, _) = p.step_aside(0, &fleet, &[w], both(&alley()))[0];
         assert!((point - DVec2::new(20.0, -0.4)).length() < 1e-9, "{point}");
@@ -417,6 +507,36 @@ mod tests {
         assert!(p.step_aside(0, &fleet, &[w], marked).is_empty());
         assert!(p
             .step_aside(0, &fleet, &[w], both(&Map::new(Vec::new())))
+            .is_empty());
+    }
+
+    #[test]
+    fn a_follower_steps_out_of_the_lane_of_someone_coming_from_behind_in_the_open() {
+        let mut p = Passing::default();
+        let f = [follower(1, 20.0, 0.0)];
+        let fleet = Fleet {
+            followers: &f,
+            robots: &f,
+            space: SPACE,
+            offset: 0.2,
+            crowded: false,
+        };
+        let open = Map::new(Vec::new());
+        // A cyclist 12 m behind at 4 m/s, 0.2 m off its centre line: through it in 3 s.
+        let cyclist = walker(8, 8.0, 0.2, 4.0, 0.0);
+        let told = p.step_aside(0, &fleet, &[cyclist], both(&open));
+        assert_eq!(told.len(), 1, "{told:?}");
+        let (_, point, _) = told[0];
+        // Square to their way, away from it, clear of their footprint.
+        assert!(point.y < -0.5 && (point.x - 20.0).abs() < 0.3, "{point}");
+        // In a crowd people come along every way: nobody steps aside in the open.
+        let crowded = Fleet {
+            crowded: true,
+            ..fleet
+        };
+        let mut p = Passing::default();
+        assert!(p
+            .step_aside(0, &crowded, &[cyclist], both(&open))
             .is_empty());
     }
 }

@@ -15,13 +15,14 @@
 //!    a driverless vehicle must not strike a person); summed by the robot's closing
 //!    speed, so that where none escapes them the slowest wins;
 //! 3. **likely contacts while moving**: contacts on each mover's mean way (their
-//!    footprint on their track's prediction) with a robot moving in them, that moving
+//!    footprint on their track's prediction meeting a robot's) with a robot moving in them, that moving
 //!    makes worse than standing would, summed by the robot's top speed in them (passive
 //!    safety: be at rest when a contact cannot be escaped; ISO/TS 15066: what cannot be
 //!    escaped is judged by its power);
 //! 4. **likely contacts** at all: someone who would walk into the fleet standing is
 //!    cleared by going on, hurrying or backing, where that avoids them;
-//! 5. **possible contacts while moving**, as 3 on the grown discs;
+//! 5. **possible contacts while moving**, as 3 on the grown discs, summed by how deep
+//!    into the touching distance they come (going on clears someone's way sooner);
 //! 6. **intrusion**: passing within about 0.5 m of someone's footprint faster than
 //!    [`SLOW_SHARE`] of the pace where standing would leave them more room;
 //! 7. **room owed**: passing within someone's personal space faster than
@@ -44,6 +45,9 @@ use crate::station::model::{self, Instant};
 /// Predicted this close to a robot's footprint (beyond the mover's grown disc), a mover
 /// touches it, m.
 const TOUCH_M: f64 = 0.15;
+/// On a mover's mean way, this close to a robot's footprint they touch it: half the
+/// grown disc's margin, what the tracker's centre is off by for a person in view, m.
+const LIKELY_M: f64 = 0.075;
 /// A moving robot keeps this from a mover's grown disc over [`IMMINENT_S`]: about the
 /// 0.5 m of the intrusion measure from their footprint, m.
 const CLEAR_M: f64 = 0.3;
@@ -136,7 +140,8 @@ pub struct Key {
     pub likely_moving: u32,
     /// Likely contacts at all.
     pub likely: u32,
-    /// Possible contacts (the grown disc) with a robot moving in them, by its top speed.
+    /// Possible contacts (the grown disc) with a robot moving in them, by how deep into
+    /// the touching distance they come: the surer, the worse.
     pub possible_moving: u32,
     pub intrusions: u32,
     pub owed: u32,
@@ -155,6 +160,11 @@ struct Touch {
     /// The robot drives into them at some instant: its velocity toward them over
     /// [`STRIKE_MPS`] and larger than theirs toward it.
     strike: bool,
+    /// Which robot (0 the leader, then the followers in the model's order): the one
+    /// moving fastest in the contact.
+    robot: usize,
+    /// How deep into the touching distance it comes at worst, m.
+    depth: f64,
 }
 
 impl Touch {
@@ -169,6 +179,12 @@ impl Touch {
             own: self.own.max(other.own),
             speed: self.speed.max(other.speed),
             strike: self.strike || other.strike,
+            robot: if other.speed > self.speed {
+                other.robot
+            } else {
+                self.robot
+            },
+            depth: self.depth.max(other.depth),
         }
     }
 }
@@ -195,7 +211,10 @@ impl Contact {
     fn see(&mut self, gap: f64, within: f64, now: impl FnOnce() -> Touch) {
         self.least = self.least.min(gap);
         if gap < within {
-            let now = now();
+            let now = Touch {
+                depth: within - gap,
+                ..now()
+            };
             self.touch = Some(self.touch.map_or(now, |t| t.worst(now)));
         }
     }
@@ -203,9 +222,19 @@ impl Contact {
     /// Its top speed in a contact that moving makes worse than standing's `stand` (any
     /// contact for someone who may not see the robots), mm/s.
     fn moving_worse(&self, stand: &Contact, wary: bool) -> Option<u32> {
+        self.moving_touch(stand, wary).map(|t| mm(t.speed))
+    }
+
+    /// How deep into the touching distance that contact comes, mm.
+    fn moving_depth(&self, stand: &Contact, wary: bool) -> Option<u32> {
+        self.moving_touch(stand, wary).map(|t| mm(t.depth))
+    }
+
+    /// That contact.
+    fn moving_touch(&self, stand: &Contact, wary: bool) -> Option<Touch> {
         let t = self.touch.filter(Touch::moving)?;
         let worse = self.least < stand.least - NO_WORSE_M;
-        (wary || stand.touch.is_none() || worse).then(|| mm(t.speed))
+        (wary || stand.touch.is_none() || worse).then_some(t)
     }
 }
 
@@ -221,8 +250,10 @@ struct Gaps {
     ahead: f64,
 }
 
-/// Each mover's [`Gaps`] over `instants`, touching within `touch` of a footprint.
-fn gaps(instants: &[Instant], movers: &[Mover], c: &Context, touch: f64) -> Vec<Gaps> {
+/// Each mover's [`Gaps`] over `instants`: a possible contact within [`TOUCH_M`] of a
+/// footprint, a likely one within [`LIKELY_M`] on the mean way; `extra` more for both
+/// (the hysteresis).
+fn gaps(instants: &[Instant], movers: &[Mover], c: &Context, extra: f64) -> Vec<Gaps> {
     movers
         .iter()
         .map(|m| {
@@ -251,17 +282,18 @@ fn gaps(instants: &[Instant], movers: &[Mover], c: &Context, touch: f64) -> Vec<
                 if i.t > m.trust_after_s + 1e-9 {
                     continue;
                 }
-                let now = || judge(&i.robots[k], m, centre);
-                g.possible.see(gap, touch, now);
-                g.likely.see(reach - bare, touch, now);
+                let now = || judge(&i.robots[k], k, m, centre);
+                g.possible.see(gap, TOUCH_M + extra, now);
+                g.likely.see(reach - bare, LIKELY_M + extra, now);
             }
             g
         })
         .collect()
 }
 
-/// A predicted touch of robot `r` and mover `m` (its centre then).
-fn judge(r: &model::Robot, m: &Mover, centre: DVec2) -> Touch {
+/// A predicted touch of robot `r` (the `k`th of the rollout) and mover `m` (its centre
+/// then).
+fn judge(r: &model::Robot, k: usize, m: &Mover, centre: DVec2) -> Touch {
     let towards = (centre - r.position()).normalize_or_zero();
     let own = r.velocity().dot(towards);
     let theirs = -m.velocity().dot(towards);
@@ -269,6 +301,8 @@ fn judge(r: &model::Robot, m: &Mover, centre: DVec2) -> Touch {
         own,
         speed: r.twist.v.abs() as f64,
         strike: own > STRIKE_MPS && own > theirs,
+        robot: k,
+        depth: 0.0,
     }
 }
 
@@ -296,7 +330,7 @@ fn key(
         strikes: sum(&|g, _, _| g.possible.touch.filter(|t| t.strike).map(|t| mm(t.own))),
         likely_moving: sum(&|g, s, m| g.likely.moving_worse(&s.likely, m.wary)),
         likely: count(&|g, _, _| g.likely.touch.is_some()),
-        possible_moving: sum(&|g, s, m| g.possible.moving_worse(&s.possible, m.wary)),
+        possible_moving: sum(&|g, s, m| g.possible.moving_depth(&s.possible, m.wary)),
         intrusions: count(&|g, s, _| {
             target > SLOW_SHARE * c.pace + 1e-9
                 && g.imminent < CLEAR_M + extra
@@ -313,13 +347,18 @@ fn key(
 }
 
 /// What the ranking chose.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Choice {
     pub candidate: Candidate,
     pub key: Key,
     /// It avoids a touch that standing would have: it goes on (or backs) to clear
     /// someone's way.
     pub clears: bool,
+    /// The followers (their index in the model) that would still move in a contact it
+    /// predicts, likely or possible: they are held where they can stop, at rest if
+    /// someone comes into them (a shape change or their slot may carry them into
+    /// someone's way while the leader stands).
+    pub holds: Vec<usize>,
 }
 
 /// Ranks every candidate for this period and returns the best. `fleet`: the model's
@@ -348,14 +387,10 @@ pub fn choose(
             0.0
         }
     };
-    let stand_gaps = gaps(&standing, movers, c, TOUCH_M + extra_of(Candidate::Stand));
+    let stand_gaps = gaps(&standing, movers, c, extra_of(Candidate::Stand));
     let stand_key = key(Candidate::Stand, &stand_gaps, &stand_gaps, movers, c, 0.0);
     tracing::trace!(?stand_key, "pace candidate Stand");
-    let mut best = Choice {
-        candidate: Candidate::Stand,
-        key: stand_key,
-        clears: false,
-    };
+    let mut best = (Candidate::Stand, stand_key, stand_gaps.clone());
     let hurry_faster = c.hurry > c.pace + 1e-9;
     for cand in Candidate::all(c.crowded, hurry_faster) {
         if cand == Candidate::Stand {
@@ -363,19 +398,40 @@ pub fn choose(
         }
         let extra = extra_of(cand);
         let instants = roll(cand);
-        let g = gaps(&instants, movers, c, TOUCH_M + extra);
+        let g = gaps(&instants, movers, c, extra);
         let mut k = key(cand, &g, &stand_gaps, movers, c, extra);
         k.site = cand == Candidate::Back && !clear_of_site(&instants, c, site);
         tracing::trace!(?cand, ?k, "pace candidate");
-        if k < best.key {
-            best = Choice {
-                candidate: cand,
-                key: k,
-                clears: k.likely < stand_key.likely,
-            };
+        if k < best.1 {
+            best = (cand, k, g);
         }
     }
-    best
+    let (candidate, key, g) = best;
+    Choice {
+        candidate,
+        key,
+        clears: key.likely < stand_key.likely,
+        holds: holds(&g, movers),
+    }
+}
+
+/// The followers still moving in a contact a rollout predicts (`g`): likely with anyone,
+/// possible with someone who may not see them.
+fn holds(g: &[Gaps], movers: &[Mover]) -> Vec<usize> {
+    let mut out: Vec<usize> = g
+        .iter()
+        .zip(movers)
+        .filter_map(|(g, m)| {
+            let likely = g.likely.touch.filter(Touch::moving);
+            let possible = g.possible.touch.filter(|t| m.wary && t.moving());
+            likely.or(possible)
+        })
+        .filter(|t| t.robot > 0)
+        .map(|t| t.robot - 1)
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 /// Whether the leader keeps [`SITE_MARGIN_M`] from the site all along a rollout.

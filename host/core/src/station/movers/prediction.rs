@@ -24,8 +24,11 @@ pub const TRUSTED_S: f64 = 1.0;
 /// Someone the robots cannot count on is predicted walking straight on for this long:
 /// one crossing from the kerb reaches the fleet's line in 2–3 s, s.
 pub const UNTRUSTED_S: f64 = 2.5;
-/// A mover seen for less than this is not known yet, s.
+/// A mover seen near the robots for less than this is not known yet, s.
 const KNOWN_S: f64 = 1.5;
+/// Near the robots: within this of one. How someone walks near the robots is what tells
+/// whether they see them; the scanner tracks people much farther off, m.
+const NEAR_M: f64 = 8.0;
 /// A mover that walks at the fleet standing this long does not see it, s.
 const AIMING_S: f64 = 0.5;
 /// A mover "walks at" a robot whose footprint its mean way comes within this of, m.
@@ -140,9 +143,14 @@ impl Prediction {
         self.crowded_s.is_some_and(|t| now_s - t <= CROWD_CLEAR_S)
     }
 
-    /// Whether the robots cannot count on `m` to steer round them: not seen long enough
-    /// to know ([`KNOWN_S`]), or walking at the fleet standing for [`AIMING_S`].
+    /// Whether the robots cannot count on `m` to steer round them: not seen near them
+    /// long enough to know ([`KNOWN_S`]), or walking at the fleet standing for
+    /// [`AIMING_S`].
     fn wary(&mut self, now_s: f64, m: &TrackView, robots: &[DVec2], footprint: f64) -> bool {
+        let near = robots.iter().any(|r| r.distance(m.position) <= NEAR_M);
+        if !near && !self.manners.contains_key(&m.id) {
+            return true;
+        }
         let manners = self.manners.entry(m.id).or_insert(Manners {
             first_s: now_s,
             aiming_since_s: None,

@@ -2,14 +2,14 @@
 //! scenario lists them, and a follower's ring does not let it pass the one ahead of it.
 //! Where the line comes out of a hold or a detour in the other order, the one left behind
 //! follows the other at its ring's distance, 2 m off its slot, for good, and the leader
-//! waits for it at its floor pace (`standing-person-oblivious-seed107`: 150 s at 0.09 m/s,
-//! then time out). So the station hands the line's slots out in the order the followers
+//! waits for it at its floor pace until its time is up. So the station hands the line's
+//! slots out in the order the followers
 //! stand along the leader's trail: where a follower held [`STUCK_M`] off its slot stands
 //! farther back along the trail than one with a later slot, by [`MARGIN_M`], for
 //! [`SETTLE_MS`], the slots are handed out again in the order they stand. Only where one
 //! is held off its slot: followers that keep their slots, though one may stand a little
 //! behind another for a moment where the leader's way turns back on itself, keep them
-//! (handed out anew there, they drove 2 m off their slots; `movers-unmapped-seed330`).
+//! (handed out anew there, they would drive off their slots to swap).
 
 use glam::DVec2;
 

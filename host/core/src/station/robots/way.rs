@@ -3,16 +3,13 @@
 //! people in a crowd), the follower behind it stands in its way. The leader's ring (or,
 //! for a follower beside its ring's view, the station's cap) holds the leader short of
 //! the follower, and the follower's ring holds the follower short of its slot, which is
-//! where the leader stands: in dense crowds (0.2 persons/m², seeds
-//! 301–332) the leader of the worlds that missed their goal stood 19 % of its standing
-//! time with a robot of its own in front of it (`docs/results.md#movers`). The planner
-//! knows only that it makes no progress, and marks a disc ahead of it on its route. The
-//! station knows which robot it is: held for [`HELD_S`], the leader's route goes round
-//! that follower's footprint. The follower does not step aside: a robot stepping aside
-//! beside another swings its body into it (tried and measured, ibid.). But in a crowd a
-//! way round one follower often runs into the other or into people, and the three
-//! robots stood packed for the rest of the run (`plaza-0.2-social-seed1729`, `1879`,
-//! `1891`: three of four fresh 0.2 timeouts, 2026-12-06). Held for [`BACK_AFTER_S`], the
+//! where the leader stands: in dense crowds the leader stood for long with a robot of
+//! its own in front of it. The planner knows only that it makes no progress, and marks
+//! a disc ahead of it on its route. The station knows which robot it is: held for
+//! [`HELD_S`], the leader's route goes round that follower's footprint. The follower does
+//! not step aside: a robot stepping aside beside another swings its body into it. But in
+//! a crowd a way round one follower often runs into the other or into people, and the
+//! robots stand packed. Held for [`BACK_AFTER_S`], the
 //! follower in the way backs straight away from the leader by [`BACK_M`] (a straight
 //! back swings nothing), where that way is clear of the site, the other robots and
 //! everyone tracked.
@@ -212,9 +209,8 @@ fn way_off(f: &Body, from: DVec2, fleet: &Fleet) -> Result<DVec2, Option<u16>> {
 
 /// The followers standing in front of the standing leader, within touching distance, on
 /// its way ahead, and holding it: within its ring's view, or beside it where the station
-/// stops it short of them ([`spacing::free`]). Its route turning back past its line, the
-/// leader facing 47° off follower 1 stood 120 s held by the station for it, unseen here
-/// (`plaza-0.2-social-seed1755`, 2026-12-06).
+/// stops it short of them ([`spacing::free`]): its route turning back past its line, a
+/// leader facing 47° off a follower is held by the station for it.
 fn in_the_way(fleet: &Fleet) -> Vec<u16> {
     let l = &fleet.leader;
     if l.v.abs() > STANDING {

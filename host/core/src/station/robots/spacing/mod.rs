@@ -164,10 +164,9 @@ const COURSE_S: f64 = 0.2;
 /// Whether `body` and another robot, both moving and neither seeing the other with its
 /// ring, close on each other so that, keeping their velocities until `body` could stop
 /// (and [`COURSE_S`] more), they come within `KEEP_M` of touching, `body`'s own motion
-/// being part of the closing. Two followers tracking slots that swung with the leader
-/// converged flank to flank, each moving clear of where the other was, and touched
-/// (plaza-0.3-social-seed1324). A robot standing is judged by [`free`]; one the other
-/// sees is its ring's.
+/// being part of the closing: two followers tracking slots that swing with the leader
+/// converge flank to flank, each moving clear of where the other was. A robot standing
+/// is judged by [`free`]; one the other sees is its ring's.
 fn converging(body: &Body, others: &[Body], footprint: f64, brake: f64) -> bool {
     let unseen = |a: &Body, b: &Body| a.v.abs() > STANDING && !a.sees(a.v.signum(), b.position);
     if body.v.abs() <= STANDING {
@@ -214,10 +213,9 @@ pub struct Told {
 
 /// A follower held: the way it was moving (1 forward, −1 backing) and since when; for one
 /// held before it set off, the way to its goal (its slot, or the point it is sent to;
-/// radians); the point it makes for, fixed
-/// when the hold began (recomputed from where it was each period, the point ran ahead of
-/// a follower at 0.7 m/s by its stopping distance, and it never stopped: it grazed
-/// another follower converging beside it, plaza-0.3-social-seed102).
+/// radians); the point it makes for, fixed when the hold began (recomputed from where
+/// it is each period, the point runs ahead of a moving follower by its stopping distance
+/// and it never stops).
 #[derive(Debug, Clone, Copy)]
 struct Held {
     sign: f64,
@@ -250,10 +248,9 @@ impl Spacing {
     ///
     /// A follower standing is judged on the way to its slot (`slots`: each one's, for its
     /// control point), or to the point it is sent to instead (`fleet.sent`), where it
-    /// will set off: judged on its heading, it was held only
-    /// once it moved, a period and the station's delay late, and a follower turning
-    /// from standing toward its slot grazed the flank of one standing beside it
-    /// (plaza-0.3-social-seed402).
+    /// will set off: judged on its heading, it would be held only once it moved, a
+    /// period and the station's delay late, turning into the flank of one standing
+    /// beside it.
     pub fn step(
         &mut self,
         now_ms: u32,
@@ -265,69 +262,30 @@ impl Spacing {
         let mut out = Vec::new();
         for f in fleet.followers {
             let was = self.held.get(&f.id).copied();
-            let standing = f.v.abs() <= STANDING;
-            let to_slot = match was {
-                // The slot moves on with the leader: judged on the way to it as it was
-                // when the hold began, two followers 0.7 m apart held each other for
-                // 220 s (plaza-0.1-social-seed305).
-                Some(h) if h.to_slot.is_some() && standing => way_to_goal(f, slots, fleet),
-                Some(h) => h.to_slot,
-                None if standing => way_to_goal(f, slots, fleet),
-                None => None,
-            };
-            // Toward its slot it sets off forward, whatever its speed's sign standing.
-            let sign = match (was, to_slot) {
-                (_, Some(_)) => 1.0,
-                (Some(h), None) => h.sign,
-                (None, None) if f.v < 0.0 => -1.0,
-                (None, None) => 1.0,
-            };
-            let way = to_slot.map_or(*f, |heading| Body { heading, ..*f });
-            let hold = converging(f, fleet.robots, fleet.footprint, fleet.brake)
-                || if was.is_some() || to_slot.is_some() {
-                    free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M
-                        || to_slot.is_some() && !fleet.sets_off_to_goal_clear(f, slots)
-                } else {
-                    f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake)
-                };
-            let stop_at = was.map_or_else(|| hold_point(f, fleet), |h| h.point);
-            // Held moving, it is judged on its heading; standing, it turns to its slot.
-            let turning = was.and_then(|h| h.turn);
-            let turn = match was {
-                Some(h) if hold && h.to_slot.is_none() && (standing || turning.is_some()) => {
-                    turn(f, turning, slots, fleet)
-                }
-                _ => Turn::Stay,
-            };
-            // Once it has turned, it is held where it stands now.
-            let here = f.control(fleet.offset);
-            let (point, turning, stop_at) = match turn {
-                Turn::Go => continue,
-                Turn::To(point) => (point, Some(point), here),
-                Turn::Stay if hold && turning.is_some() => (here, None, here),
-                Turn::Stay if hold => (stop_at, None, stop_at),
-                Turn::Stay => continue,
-            };
-            let since_ms = was.map_or(now_ms, |h| h.since_ms);
-            held.insert(
-                f.id,
-                Held {
-                    sign,
-                    since_ms,
-                    to_slot,
-                    point: stop_at,
-                    turn: turning,
-                },
-            );
-            out.push(Told {
-                id: f.id,
-                order: Order::Hold,
-                point,
-                began: was.is_none(),
-            });
+            if let Some((h, told)) = hold_one(f, was, fleet, slots, now_ms) {
+                held.insert(f.id, h);
+                out.push(told);
+            }
         }
+        let (making_room, room) = self.make_room(&held, fleet, map, now_ms);
+        out.extend(room);
+        self.held = held;
+        self.making_room = making_room;
+        out
+    }
+
+    /// The followers standing in the way of one held for [`ROOM_AFTER_MS`], each told to
+    /// step aside (the two would otherwise wait for each other for good).
+    fn make_room(
+        &self,
+        held: &BTreeMap<u16, Held>,
+        fleet: &Fleet,
+        map: &Map,
+        now_ms: u32,
+    ) -> (BTreeSet<u16>, Vec<Told>) {
         let mut making_room = BTreeSet::new();
-        for (id, h) in &held {
+        let mut out = Vec::new();
+        for (id, h) in held {
             if now_ms.wrapping_sub(h.since_ms) < ROOM_AFTER_MS {
                 continue;
             }
@@ -348,17 +306,14 @@ impl Spacing {
                 began: !self.making_room.contains(&other),
             });
         }
-        self.held = held;
-        self.making_room = making_room;
-        out
+        (making_room, out)
     }
 
     /// One period: the followers whose slot (`slots`: each one's, for its control point)
     /// lies where its footprint would come within [`KEEP_M`] of the leader's, held where
     /// they can stop until it does not. Where the leader's route turns back along the
     /// line, the slot on the path it drove can fall on the leader itself, and a follower
-    /// closing on it at its pace touched the leader's flank (plaza-0.3-social-seed103,
-    /// plaza-0.2-social-seed104).
+    /// closing on it at its pace would touch the leader's flank.
     pub fn hold_off_slots(
         &mut self,
         fleet: &Fleet,
@@ -389,6 +344,75 @@ impl Spacing {
     }
 }
 
+/// Whether follower `f` (held last period: `was`) is held this period, and where: its
+/// way, at its speed, runs into another robot within its stopping distance, or, standing,
+/// its way to its goal (its slot, or the point it is sent to) does not swing clear.
+/// Standing, it turns to face its goal where that swings clear, and goes once it does
+/// with the way clear; held while moving, it is judged on its heading.
+fn hold_one(
+    f: &Body,
+    was: Option<Held>,
+    fleet: &Fleet,
+    slots: &[(u16, DVec2)],
+    now_ms: u32,
+) -> Option<(Held, Told)> {
+    let standing = f.v.abs() <= STANDING;
+    let to_slot = match was {
+        // The slot moves on with the leader: judged on the way to it as it was when the
+        // hold began, two followers side by side held each other for good.
+        Some(h) if h.to_slot.is_some() && standing => way_to_goal(f, slots, fleet),
+        Some(h) => h.to_slot,
+        None if standing => way_to_goal(f, slots, fleet),
+        None => None,
+    };
+    // Toward its slot it sets off forward, whatever its speed's sign standing.
+    let sign = match (was, to_slot) {
+        (_, Some(_)) => 1.0,
+        (Some(h), None) => h.sign,
+        (None, None) if f.v < 0.0 => -1.0,
+        (None, None) => 1.0,
+    };
+    let way = to_slot.map_or(*f, |heading| Body { heading, ..*f });
+    let hold = converging(f, fleet.robots, fleet.footprint, fleet.brake)
+        || if was.is_some() || to_slot.is_some() {
+            free(&way, sign, fleet.robots, fleet.footprint) < CLEAR_M
+                || to_slot.is_some() && !fleet.sets_off_to_goal_clear(f, slots)
+        } else {
+            f.v.abs() > top_speed(f, sign, fleet.robots, fleet.footprint, fleet.brake)
+        };
+    let stop_at = was.map_or_else(|| hold_point(f, fleet), |h| h.point);
+    let turning = was.and_then(|h| h.turn);
+    let turn = match was {
+        Some(h) if hold && h.to_slot.is_none() && (standing || turning.is_some()) => {
+            turn(f, turning, slots, fleet)
+        }
+        _ => Turn::Stay,
+    };
+    // Once it has turned, it is held where it stands now.
+    let here = f.control(fleet.offset);
+    let (point, turning, stop_at) = match turn {
+        Turn::Go => return None,
+        Turn::To(point) => (point, Some(point), here),
+        Turn::Stay if hold && turning.is_some() => (here, None, here),
+        Turn::Stay if hold => (stop_at, None, stop_at),
+        Turn::Stay => return None,
+    };
+    let h = Held {
+        sign,
+        since_ms: was.map_or(now_ms, |h| h.since_ms),
+        to_slot,
+        point: stop_at,
+        turn: turning,
+    };
+    let told = Told {
+        id: f.id,
+        order: Order::Hold,
+        point,
+        began: was.is_none(),
+    };
+    Some((h, told))
+}
+
 /// The way from a follower's control point to its goal (radians; the point it is sent
 /// to, else its slot), if it has one and is not there already.
 fn way_to_goal(f: &Body, slots: &[(u16, DVec2)], fleet: &Fleet) -> Option<f64> {
@@ -410,9 +434,9 @@ enum Turn {
 /// A follower held while it moved stands with another robot at its flank, on its heading
 /// but not on its way to its slot. Judged on its heading it is held for good; judged on
 /// the way to its slot it is let go, and the law drives it on along its heading while it
-/// turns, into that flank. Two followers so held, each on the other's way, waited for
-/// each other for 230 s (plaza-0.2-social-seed1005). It turns on the spot first, where
-/// that swings clear, and goes once it faces its slot with the way clear.
+/// turns, into that flank; two followers so held, each on the other's way, wait for each
+/// other for good. It turns on the spot first, where that swings clear, and goes once it
+/// faces its slot with the way clear.
 /// `turning`: the point of a turn under way.
 fn turn(f: &Body, turning: Option<DVec2>, slots: &[(u16, DVec2)], fleet: &Fleet) -> Turn {
     let Some(slot) = fleet.goal(slots, f.id) else {
@@ -443,8 +467,14 @@ fn turn(f: &Body, turning: Option<DVec2>, slots: &[(u16, DVec2)], fleet: &Fleet)
 
 /// Where a held follower's control point makes for: the point it can stop at.
 fn hold_point(f: &Body, fleet: &Fleet) -> DVec2 {
-    let stop = stopping(f.v, fleet.brake) * f.v.signum();
-    f.position + DVec2::from_angle(f.heading) * (fleet.offset + stop)
+    stop_point(f, fleet.offset, fleet.brake)
+}
+
+/// The point `f`'s control point (`offset` ahead of its centre) can stop at, braking at
+/// `brake` after the station's delay.
+pub fn stop_point(f: &Body, offset: f64, brake: f64) -> DVec2 {
+    let stop = stopping(f.v, brake) * f.v.signum();
+    f.position + DVec2::from_angle(f.heading) * (offset + stop)
 }
 
 /// What [`Spacing::step`] needs to know of the fleet this period.
@@ -477,9 +507,9 @@ impl Fleet<'_> {
 
     /// Whether standing follower `f` swings clear of the robots beside it setting off for
     /// its goal, as its firmware drives there: a detour's law toward a point it is sent to,
-    /// else the L-φ law toward its slot. Judged on its slot while it was sent round a bin,
-    /// a follower let go backed toward the detour point, turning, into the flank of one
-    /// standing beside it (plaza-0.3-social-seed1615, in a variant of 2026-12-06).
+    /// else the L-φ law toward its slot: judged on its slot while it is sent round a bin,
+    /// a follower let go backs toward the detour point, turning, into the flank of one
+    /// standing beside it.
     fn sets_off_to_goal_clear(&self, f: &Body, slots: &[(u16, DVec2)]) -> bool {
         match slot_of(self.sent, f.id) {
             Some(point) => steps_clear(f, point, self),

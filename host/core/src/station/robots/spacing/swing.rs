@@ -25,8 +25,8 @@ const STEP_SLACK_M: f64 = 0.01;
 /// point makes for `point` as its firmware drives a detour: none comes within [`KEEP_M`]
 /// beyond both footprints, nor, where it is that near already, nearer than now. A
 /// differential drive brings its control point aside by swinging its body round: a
-/// follower stepping aside backed its flank into the one held for it, where neither ring
-/// looks (plaza-0.2-social-seed1033).
+/// follower stepping aside backs its flank into the one held for it, where neither ring
+/// looks.
 pub(super) fn steps_clear(stepper: &Body, point: DVec2, fleet: &Fleet) -> bool {
     let target = (point.x as f32, point.y as f32);
     let d = fleet.offset as f32;
@@ -38,8 +38,8 @@ pub(super) fn steps_clear(stepper: &Body, point: DVec2, fleet: &Fleet) -> bool {
 /// Whether a standing follower setting off for its slot swings clear of the robots beside
 /// it over its first [`SET_OFF_ROLLOUT_S`], driving its own L-φ law toward the slot as
 /// it stands from the leader now, the leader driving on as it was last told. Its way
-/// judged as a straight line to the slot, a follower let go backed and swung its flank
-/// into one standing beside it (plaza-0.2-social-seed1053).
+/// judged as a straight line to the slot, a follower let go backs and swings its flank
+/// into one standing beside it.
 pub(super) fn sets_off_clear(f: &Body, slots: &[(u16, DVec2)], fleet: &Fleet) -> bool {
     let (Some(leader), Some(slot)) = (fleet.leader, slot_of(slots, f.id)) else {
         return true;
