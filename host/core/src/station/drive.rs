@@ -107,6 +107,10 @@ impl BaseStation {
                 StationEvent::SteppingBack { at_ms },
                 "steps back out of someone's way",
             ),
+            Manner::SteppingAside => (
+                StationEvent::SteppingAside { at_ms },
+                "steps aside out of someone's lane",
+            ),
             Manner::ClearingWay => (
                 StationEvent::ClearingWay { at_ms },
                 "goes on out of someone's way",
@@ -165,12 +169,28 @@ impl BaseStation {
         {
             self.drop_lanes();
         }
-        let command = if decision.choice.candidate == Candidate::Back {
-            (-self.cfg.reverse_speed, 0.0)
-        } else {
-            (drive.v, drive.omega)
+        let command = match decision.choice.candidate {
+            Candidate::Back => (-self.cfg.reverse_speed, 0.0),
+            Candidate::Aside(point) => self.toward(leader, point),
+            _ => (drive.v, drive.omega),
         };
         self.command_leader(leader, command, bodies, look.blend, now_ms);
+    }
+
+    /// The leader's (v, ω) for its control point to make for `point`, as a follower's
+    /// detour makes for its point.
+    fn toward(&self, leader: &LeaderEstimate, point: DVec2) -> (f64, f64) {
+        let p = leader.pose;
+        let pose =
+            control_core::Pose::new(p.position.x as f32, p.position.y as f32, p.heading as f32);
+        let t = control_core::follower::toward(
+            (point.x as f32, point.y as f32),
+            &pose,
+            self.cfg.robot.gains.d,
+            control_core::controller::DETOUR_GAIN,
+            control_core::controller::DETOUR_SPEED,
+        );
+        (t.v as f64, t.omega as f64)
     }
 
     /// How hard the leader speeds up among movers: as hard as its followers may, not at

@@ -97,7 +97,11 @@ pub enum StationEvent {
     ClearingWay {
         at_ms: u32,
     },
-    /// The leader is back at its route's pace after one of the three above.
+    /// The leader began to step aside, out of the lane of someone coming along it.
+    SteppingAside {
+        at_ms: u32,
+    },
+    /// The leader is back at its route's pace after one of the four above.
     PaceResumed {
         at_ms: u32,
     },
@@ -143,6 +147,7 @@ impl StationEvent {
             E::SteppingBack { at_ms } => (*at_ms, "stepping_back".into(), Some(leader)),
             E::ClearingWay { at_ms } => (*at_ms, "clearing_way".into(), Some(leader)),
             E::PaceResumed { at_ms } => (*at_ms, "pace_resumed".into(), Some(leader)),
+            E::SteppingAside { at_ms } => (*at_ms, "stepping_aside".into(), Some(leader)),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }

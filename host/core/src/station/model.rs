@@ -183,9 +183,67 @@ pub struct Instant {
     pub robots: Vec<Robot>,
 }
 
-/// The fleet rolled out for `horizon_s`, the leader making for `target` m/s (negative:
-/// backing straight along its heading); an instant per step, the start left out.
-pub fn rollout(fleet: &Fleet, target: f64, horizon_s: f64) -> Vec<Instant> {
+/// How the leader moves in a rollout.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Plan {
+    /// Along its path, making for this speed, m/s (negative: backing straight along its
+    /// heading).
+    Along(f64),
+    /// Off its path: its control point makes for this point, as a follower's detour does.
+    Toward(DVec2),
+}
+
+/// The fleet rolled out for `horizon_s`, the leader as `plan` says; an instant per step,
+/// the start left out.
+pub fn rollout(fleet: &Fleet, plan: Plan, horizon_s: f64) -> Vec<Instant> {
+    match plan {
+        Plan::Along(target) => rollout_along(fleet, target, horizon_s),
+        Plan::Toward(point) => rollout_toward(fleet, point, horizon_s),
+    }
+}
+
+/// The leader making for `point` off its path, the followers after it (the line along
+/// the way it drove).
+fn rollout_toward(fleet: &Fleet, point: DVec2, horizon_s: f64) -> Vec<Instant> {
+    let dt = STEP_S;
+    let l = fleet.leader;
+    let mut lead = Robot::new(l.pose.position, l.pose.heading, l.v);
+    let mut driven: Vec<DVec2> = fleet.behind.to_vec();
+    let mut followers: Vec<Robot> = fleet.followers.iter().map(|(r, _)| *r).collect();
+    let target = (point.x as f32, point.y as f32);
+    let steps = (horizon_s / dt).round() as usize;
+    let mut out = Vec::with_capacity(steps);
+    for k in 1..=steps {
+        let t = k as f64 * dt;
+        let asked = follower::toward(
+            target,
+            &lead.pose,
+            fleet.robot.gains.d,
+            DETOUR_GAIN,
+            DETOUR_SPEED,
+        );
+        lead.drive(fleet.robot, asked, dt as f32);
+        driven.insert(0, lead.position());
+        let leader = LeaderSnapshot {
+            pose: lead.pose,
+            v: lead.twist.v,
+            omega: lead.twist.omega,
+        };
+        let blend = fleet.formation.blend_at(fleet.now_s + t);
+        for (f, (_, goal)) in followers.iter_mut().zip(fleet.followers) {
+            let asked = law(fleet, &leader, &driven, blend, f, *goal);
+            f.drive(fleet.robot, asked, dt as f32);
+        }
+        let mut robots = Vec::with_capacity(followers.len() + 1);
+        robots.push(lead);
+        robots.extend_from_slice(&followers);
+        out.push(Instant { t, robots });
+    }
+    out
+}
+
+/// The leader making for `target` m/s along its path.
+fn rollout_along(fleet: &Fleet, target: f64, horizon_s: f64) -> Vec<Instant> {
     let dt = STEP_S;
     let l = fleet.leader;
     let trail = prefix(fleet.behind, fleet.formation.line_reach() + 1.0);
@@ -334,7 +392,7 @@ mod tests {
             robot: &robot,
             now_s: 0.0,
         };
-        rollout(&fleet, target, 3.0)
+        rollout(&fleet, Plan::Along(target), 3.0)
     }
 
     #[test]

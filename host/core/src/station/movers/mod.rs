@@ -23,6 +23,11 @@ use crate::station::model;
 /// this long, ends it: the ranking may try another candidate for a period or two, s.
 const SETTLE_S: f64 = 0.3;
 const RESUMED_AFTER_S: f64 = 1.0;
+/// A step aside takes the leader's control point this far to a side of its path, and
+/// this far on (a differential drive turns out of a lane on an arc): a cyclist's
+/// half-width, the footprint and a margin, m.
+const ASIDE_M: f64 = 1.2;
+const ASIDE_AHEAD_M: f64 = 0.8;
 
 /// How the fleet goes among what moves, as the operator is told.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,6 +38,8 @@ pub enum Manner {
     Waiting,
     /// Backing out of the way of someone who may not see it.
     SteppingBack,
+    /// Stepping aside, out of the lane of someone coming along it.
+    SteppingAside,
     /// Going on, hurrying if need be, out of the way of someone who would walk into it.
     ClearingWay,
 }
@@ -120,7 +127,8 @@ impl Movers {
                 holds: Vec::new(),
             }
         } else {
-            pace::choose(fleet, movers, ctx, self.last, site)
+            let aside = self.aside_points(fleet.leader.pose);
+            pace::choose(fleet, movers, (ctx, site), self.last, &aside)
         };
         tracing::trace!(now_s, chosen = ?choice.candidate, key = ?choice.key, "pace");
         self.last = choice.candidate;
@@ -141,6 +149,20 @@ impl Movers {
             announce: self.announce(now_s, manner),
             among_movers: !movers.is_empty(),
             held_followers: Vec::new(),
+        }
+    }
+
+    /// Where the leader's control point may step aside to, either side of its path: the
+    /// point it is stepping to kept, so the step is not chased round.
+    fn aside_points(&self, leader: crate::geometry::PlanPose) -> Vec<DVec2> {
+        let h = DVec2::from_angle(leader.heading);
+        let fresh = |side: f64| leader.position + h * ASIDE_AHEAD_M + h.perp() * side * ASIDE_M;
+        match self.last {
+            Candidate::Aside(p) => {
+                let side = h.perp().dot(p - leader.position).signum();
+                vec![p, fresh(-side)]
+            }
+            _ => vec![fresh(1.0), fresh(-1.0)],
         }
     }
 
@@ -195,6 +217,7 @@ impl Movers {
 fn manner_of(choice: &Choice, target: f64, held: bool) -> Manner {
     match choice.candidate {
         Candidate::Back => Manner::SteppingBack,
+        Candidate::Aside(_) => Manner::SteppingAside,
         _ if held => Manner::Waiting,
         _ if choice.clears && target > 0.0 => Manner::ClearingWay,
         Candidate::Hurry => Manner::ClearingWay,

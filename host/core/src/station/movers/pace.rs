@@ -84,6 +84,9 @@ pub enum Candidate {
     Share(f64),
     /// Faster than the route's pace, to clear someone's way.
     Hurry,
+    /// Off its path, its control point making for this point to one side of it: out of
+    /// the lane of someone coming along it.
+    Aside(DVec2),
 }
 
 impl Candidate {
@@ -94,12 +97,27 @@ impl Candidate {
             Candidate::Stand => 0.0,
             Candidate::Share(s) => s * c.pace,
             Candidate::Hurry => c.hurry,
+            Candidate::Aside(_) => 0.0,
         }
     }
 
-    /// Every candidate for this period: backing and hurrying only away from a crowd (in
-    /// one someone is always behind, and hurrying among people just seen costs goals).
-    fn all(crowded: bool, hurry_faster: bool) -> Vec<Candidate> {
+    /// How the forward model moves the leader for it.
+    pub fn plan(self, c: &Context) -> model::Plan {
+        match self {
+            Candidate::Aside(point) => model::Plan::Toward(point),
+            _ => model::Plan::Along(self.target(c)),
+        }
+    }
+
+    /// Whether it moves the leader more than its pace would, to clear someone's way.
+    fn extra_motion(self) -> bool {
+        matches!(self, Candidate::Hurry | Candidate::Aside(_))
+    }
+
+    /// Every candidate for this period: backing, hurrying and stepping aside (to the
+    /// points `aside`) only away from a crowd (in one someone is always behind, and
+    /// moving more than its pace among people just seen costs goals).
+    fn all(crowded: bool, hurry_faster: bool, aside: &[DVec2]) -> Vec<Candidate> {
         let mut out = vec![Candidate::Stand];
         out.extend([0.2, 0.4, 0.6, 0.8, 1.0].map(Candidate::Share));
         if !crowded {
@@ -107,6 +125,7 @@ impl Candidate {
             if hurry_faster {
                 out.push(Candidate::Hurry);
             }
+            out.extend(aside.iter().map(|p| Candidate::Aside(*p)));
         }
         out
     }
@@ -147,8 +166,9 @@ pub struct Key {
     pub owed: u32,
     /// Minus the speed up to the pace.
     pub slower: i64,
-    /// Hurrying, where standing still and its pace rank the same.
-    pub hurrying: bool,
+    /// Hurrying or stepping aside: moving more than its pace, where that and its pace
+    /// rank the same.
+    pub extra_motion: bool,
 }
 
 /// A predicted contact, judged as the report judges one, over all its instants.
@@ -342,7 +362,7 @@ fn key(
                 && worse(g.ahead, s.ahead)
         }),
         slower: -(target.min(c.pace) * 1000.0).round() as i64,
-        hurrying: matches!(candidate, Candidate::Hurry),
+        extra_motion: candidate.extra_motion(),
     }
 }
 
@@ -366,16 +386,16 @@ pub struct Choice {
 pub fn choose(
     fleet: &model::Fleet,
     movers: &[Mover],
-    c: &Context,
+    (c, site): (&Context, &Map),
     last: Candidate,
-    site: &Map,
+    aside: &[DVec2],
 ) -> Choice {
     let horizon = movers
         .iter()
         .map(|m| m.trust_after_s)
         .fold(c.horizon_s.max(IMMINENT_S), f64::max);
     let last_target = last.target(c);
-    let roll = |cand: Candidate| model::rollout(fleet, cand.target(c), horizon);
+    let roll = |cand: Candidate| model::rollout(fleet, cand.plan(c), horizon);
     let standing = roll(Candidate::Stand);
     let extra_of = |cand: Candidate| {
         let t = cand.target(c);
@@ -392,7 +412,7 @@ pub fn choose(
     tracing::trace!(?stand_key, "pace candidate Stand");
     let mut best = (Candidate::Stand, stand_key, stand_gaps.clone());
     let hurry_faster = c.hurry > c.pace + 1e-9;
-    for cand in Candidate::all(c.crowded, hurry_faster) {
+    for cand in Candidate::all(c.crowded, hurry_faster, aside) {
         if cand == Candidate::Stand {
             continue;
         }
@@ -400,7 +420,8 @@ pub fn choose(
         let instants = roll(cand);
         let g = gaps(&instants, movers, c, extra);
         let mut k = key(cand, &g, &stand_gaps, movers, c, extra);
-        k.site = cand == Candidate::Back && !clear_of_site(&instants, c, site);
+        let off_path = matches!(cand, Candidate::Back | Candidate::Aside(_));
+        k.site = off_path && !clear_of_site(&instants, c, site);
         tracing::trace!(?cand, ?k, "pace candidate");
         if k < best.1 {
             best = (cand, k, g);
@@ -492,6 +513,6 @@ mod tests {
                     ..slow
                 }
         );
-        assert!(with(|k| k.hurrying = true) > base);
+        assert!(with(|k| k.extra_motion = true) > base);
     }
 }
