@@ -118,6 +118,15 @@ fn site_extent(world: &World) -> (f64, f64, f64) {
     ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0, span)
 }
 
+/// The least clearance to an obstacle, or that none came near.
+pub fn clearance(least_m: f64) -> String {
+    if least_m.is_finite() {
+        format!("min clearance {least_m:.2} m")
+    } else {
+        "no obstacle came near".to_string()
+    }
+}
+
 fn trajectories<DB: DrawingBackend>(
     world: &World,
     report: &Report,
@@ -128,17 +137,13 @@ where
 {
     let (cx, cy, span) = site_extent(world);
     let title = format!(
-        "{} ({}, seed {}): goal {}, {} collisions, min clearance {:.2} m",
+        "{} ({}, seed {}): {}; {} collisions, {}",
         report.scenario,
         report.firmware,
         report.seed,
-        if report.goal_reached {
-            "reached"
-        } else {
-            "NOT reached"
-        },
+        report.why,
         report.collisions,
-        report.min_obstacle_clearance_m
+        clearance(report.min_obstacle_clearance_m)
     );
     // The movers' line under the title: on one line the two outran the panel.
     let movers = (report.movers.count > 0).then(|| {

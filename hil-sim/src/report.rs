@@ -107,6 +107,12 @@ pub struct Report {
     pub baseline: Option<String>,
     pub goal_reached: bool,
     pub time_to_goal_s: Option<f64>,
+    /// How the run ended (schema 4): `goal_reached`, `time_up`, `leader_lost`, `halted`,
+    /// `localization_lost`, `no_route`, `stopped`, `never_linked`, or `external` (the
+    /// station was another process: its summary says why).
+    pub ending: String,
+    /// Why, in one line: the same line as the summary, the figure and the console.
+    pub why: String,
     pub collisions: u32,
     pub min_obstacle_clearance_m: f64,
     pub min_robot_separation_m: f64,
@@ -480,6 +486,8 @@ pub fn build_report(
         started_unix_ms: None,
         baseline: None,
         goal_reached: facts.time_to_goal_s.is_some(),
+        ending: String::new(),
+        why: String::new(),
         time_to_goal_s: facts.time_to_goal_s,
         collisions: rec.contacts + rec.movers.contacts_moving + rec.movers.contacts_standing,
         min_obstacle_clearance_m: rec.min_clearance,

@@ -97,8 +97,18 @@ pub fn report_of(world: &World, wall_time_s: f64) -> Report {
         MoverPolicy::Parked => Some("parked".to_string()),
     };
     if world.external.is_some() {
+        report.ending = "external".into();
+        report.why = match report.time_to_goal_s {
+            Some(t) => format!("goal reached at {t:.1} s"),
+            None => "ended short of the goal (the station is another process: its summary \
+                     says why)"
+                .into(),
+        };
         return report;
     }
+    let ending = world.station.ending(world.base_ms(), world.stop_requested);
+    report.ending = ending.kind().into();
+    report.why = ending.why();
     let leader = world.station.config().leader;
     let epoch = world.base_epoch_s();
     report.station_events = world

@@ -362,7 +362,10 @@ fn forged_scans_neither_stop_nor_blind_the_station() {
     let foreign = base_station::seal::SourceKey::derive(&other_site, "scan");
     send(&foreign.seal(&wall(), unix_us()));
     std::thread::sleep(Duration::from_secs(2));
-    send(&seal("scan", &wall(), unix_us()));
+    // The simulated robots seal each scan with the time it was taken, up to one physics
+    // step ahead of the wall clock: a processor sharing their key whose clock runs 50 ms
+    // ahead, so that its wall is not a replay of the last genuine scan.
+    send(&seal("scan", &wall(), unix_us() + 50_000));
     run.finish(Duration::from_secs(120));
     robots.finish(Duration::from_secs(30));
 

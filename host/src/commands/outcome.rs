@@ -4,7 +4,7 @@
 
 use std::process::ExitCode;
 
-use base_station::station::{BaseStation, StationEvent};
+use base_station::station::Ending;
 
 /// How a `sim` or `run` ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,30 +33,13 @@ impl Outcome {
         }
     }
 
-    /// How `station`'s run ended; `interrupted`: the process was asked to stop.
-    pub fn of(station: &BaseStation, interrupted: bool) -> Self {
-        let linked = station
-            .events()
-            .iter()
-            .any(|e| matches!(e, StationEvent::Linked { .. }));
-        if station.arrived() {
-            Outcome::GoalReached
-        } else if !linked {
-            Outcome::NeverLinked
-        } else if interrupted || station.operator_hold().is_some() {
-            Outcome::Stopped
-        } else {
-            Outcome::GoalNotReached
-        }
-    }
-
-    /// In words, for the operator's page.
-    pub fn words(self) -> &'static str {
-        match self {
-            Outcome::GoalReached => "goal reached",
-            Outcome::GoalNotReached => "ended without reaching the goal",
-            Outcome::Stopped => "stopped by the operator",
-            Outcome::NeverLinked => "no robot ever linked",
+    /// The exit code's class of how a run ended.
+    pub fn of(ending: &Ending) -> Self {
+        match ending {
+            Ending::GoalReached { .. } => Outcome::GoalReached,
+            Ending::NeverLinked => Outcome::NeverLinked,
+            Ending::Stopped { .. } => Outcome::Stopped,
+            _ => Outcome::GoalNotReached,
         }
     }
 

@@ -267,6 +267,9 @@ impl Live {
         self.last_report = now_ms / 1000;
         self.diagnosis.look(&self.station, ids, now_ms);
         if self.last_report.is_multiple_of(5) {
+            if let Some(p) = self.station.progress(now_ms) {
+                tracing::info!("{}", super::sim::progress_words(&p));
+            }
             log_link(&self.station, now_ms, self.last_report.is_multiple_of(15));
             if let Some(l) = &self.localization {
                 l.log();
@@ -290,7 +293,10 @@ impl Live {
             r.radio("base", &out, now_ns());
             r.close()?;
         }
-        let summary = self.summary(scenario)?;
+        let ending = self.station.ending(self.now_ms(), interrupted);
+        let mut summary = self.summary(scenario)?;
+        summary["ending"] = json!(ending.kind());
+        summary["why"] = json!(ending.why());
         eprintln!("{}", serde_json::to_string(&summary)?);
         if let Some(path) = &args.report {
             let text = serde_json::to_string_pretty(&summary)? + "\n";
@@ -299,11 +305,12 @@ impl Live {
                     .with_context(|| format!("cannot write {}", partial.display()))
             })?;
         }
-        let outcome = super::outcome::Outcome::of(&self.station, interrupted);
+        eprintln!("{}", ending.why());
+        let outcome = super::outcome::Outcome::of(&ending);
         if let Some(console) = self.console.as_ref().filter(|c| c.alive()) {
             // The page says the run finished and how, not that the station is gone.
             let last = crate::live::console::snapshot(&self.station, self.now_ms());
-            console.publish(&crate::live::console::finished(last, outcome.words()));
+            console.publish(&crate::live::console::finished(last, &ending.why()));
             std::thread::sleep(crate::live::console::FINISHED_SHOWN);
         }
         if outcome == super::outcome::Outcome::NeverLinked {

@@ -111,10 +111,11 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     std::fs::rename(super::partial_path(&mcap_path), &mcap_path)
         .with_context(|| format!("cannot write {}", mcap_path.display()))?;
     print_table(&report, &report_path, &plot_path, &mcap_path);
-    let outcome = super::outcome::Outcome::of(&world.station, interrupted);
+    let ending = world.station.ending(world.base_ms(), interrupted);
+    let outcome = super::outcome::Outcome::of(&ending);
     if let Some(console) = console.as_ref().filter(|c| c.alive()) {
         let last = crate::live::console::snapshot(&world.station, world.base_ms());
-        console.publish(&crate::live::console::finished(last, outcome.words()));
+        console.publish(&crate::live::console::finished(last, &ending.why()));
         std::thread::sleep(crate::live::console::FINISHED_SHOWN);
     }
     if interrupted {
@@ -188,6 +189,20 @@ fn write_outputs(
         super::write_trace(world, path)?;
     }
     Ok((report_path, plot_path))
+}
+
+/// The way left in words: `12.3 m to go · waypoint 2 of 3 · about 40 s`.
+pub fn progress_words(p: &base_station::station::Progress) -> String {
+    let eta = p
+        .eta_s
+        .map_or(String::new(), |s| format!(" · about {s:.0} s"));
+    format!(
+        "{:.0} % · {:.1} m to go · waypoint {} of {}{eta}",
+        100.0 * p.share,
+        p.left_m,
+        p.waypoint,
+        p.waypoints
+    )
 }
 
 /// What watches a run as it goes: the terminal's bar, the recording (fed on a thread of
@@ -265,11 +280,8 @@ impl Watch {
             Some(_) => {}
         }
         world.stop_requested |= self.interrupted.load(Ordering::SeqCst);
-        let t = world.t_us as f64 / 1e6;
-        let permille = (t / self.end_s.max(1e-9) * 1000.0) as u64;
-        if permille != self.bar.position() {
-            self.bar.set_position(permille);
-            self.bar.set_message(format!("{t:.0} s"));
+        if world.t_us.is_multiple_of(100_000) {
+            self.show_progress(world);
         }
         if let Some(console) = self.console.as_ref().filter(|c| c.alive()) {
             let now_ms = world.base_ms();
@@ -294,6 +306,19 @@ impl Watch {
                 live.scene(&world.station, world.base_ms(), world.t_us * 1000);
             }
         }
+    }
+
+    /// The bar at the share of the way done (of the run's time before the leader is
+    /// known), with the way left and when the fleet should arrive.
+    fn show_progress(&self, world: &World) {
+        let t = world.t_us as f64 / 1e6;
+        let (share, words) = match world.station.progress(world.base_ms()) {
+            Some(p) => (p.share, format!("{t:.0} s · {}", progress_words(&p))),
+            None => (t / self.end_s.max(1e-9), format!("{t:.0} s")),
+        };
+        self.bar
+            .set_position((share.clamp(0.0, 1.0) * 1000.0) as u64);
+        self.bar.set_message(words);
     }
 
     /// Ends the live stream and the bar.
@@ -377,10 +402,7 @@ fn print_table(r: &Report, report_path: &Path, plot_path: &Path, mcap_path: &Pat
         r.wall_time_s,
         rtf
     );
-    match r.time_to_goal_s {
-        Some(t) => outln!("goal reached after {t:.1} s"),
-        None => outln!("goal NOT reached"),
-    }
+    outln!("{}", r.why);
     print_robots(r);
     print_run(r);
     outln!(
@@ -410,11 +432,12 @@ fn print_robots(r: &Report) {
 /// The run's contacts, movers, shape changes and link.
 fn print_run(r: &Report) {
     outln!(
-        "collisions {} · min obstacle clearance {:.2} m · min robot separation {:.2} m · convergence {}",
+        "collisions {} · {} · min robot separation {:.2} m · convergence {}",
         r.collisions,
-        r.min_obstacle_clearance_m,
+        hil_sim::plot::clearance(r.min_obstacle_clearance_m),
         r.min_robot_separation_m,
-        r.convergence_time_s.map_or("never".to_string(), |t| format!("{t:.1} s"))
+        r.convergence_time_s
+            .map_or("never".to_string(), |t| format!("{t:.1} s"))
     );
     let m = &r.movers;
     if m.count > 0 {

@@ -440,6 +440,35 @@ impl Planner {
         routing.unchecked.retain(|u| !obstacles.contains(u));
     }
 
+    /// How far the leader has still to go along its route (route guidance, once planned;
+    /// the straight way to the goal in the field mode), m, and the waypoint it makes for
+    /// (1-based) of how many.
+    pub fn still_to_go(&self, from: DVec2) -> Option<(f64, usize, usize)> {
+        let n = self.route.len();
+        let k = (self.next + 1).min(n);
+        if self.arrived() {
+            return Some((0.0, n, n));
+        }
+        let left = match self.routing.as_ref() {
+            Some(r) => {
+                let route = r.route.as_ref()?;
+                (route.length() - r.s).max(0.0)
+            }
+            None => {
+                let rest = self.route.get(self.next..)?;
+                let mut at = from;
+                rest.iter()
+                    .map(|w| {
+                        let d = at.distance(*w);
+                        at = *w;
+                        d
+                    })
+                    .sum()
+            }
+        };
+        Some((left, k, n))
+    }
+
     /// How many times the route was planned again because the way was blocked.
     pub fn replans(&self) -> u32 {
         self.routing.as_ref().map_or(0, |r| r.replans)

@@ -76,7 +76,9 @@ impl BaseStation {
     }
 
     /// Each follower in the model (with its id): as estimated now, making for what it was
-    /// told last period (a point), else its slot; one not following stands.
+    /// told last period (a point), else its slot; one not following stands. One held for
+    /// people makes for its slot: whether it may go on is judged by what going on would
+    /// do (judged held, it would be let go the next period and held again the one after).
     fn model_followers(
         &self,
         bodies: &[spacing::Body],
@@ -88,9 +90,12 @@ impl BaseStation {
             .enumerate()
             .filter_map(|(k, id)| {
                 let b = bodies.iter().find(|b| b.id == *id)?;
+                let following = following.iter().any(|f| f.id == *id);
+                let for_people = self.people_holds.contains_key(id);
                 let goal = match self.orders.get(id) {
+                    Some(_) if following && for_people => Goal::Slot(k),
                     Some(point) => Goal::Point(*point),
-                    None if following.iter().any(|f| f.id == *id) => Goal::Slot(k),
+                    None if following => Goal::Slot(k),
                     None => Goal::Hold,
                 };
                 Some((*id, (Robot::new(b.position, b.heading, b.v), goal)))

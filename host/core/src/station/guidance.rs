@@ -65,6 +65,8 @@ pub struct Guidance {
     formation: FormationManager,
     /// The leader's estimated path, oldest first, points `PATH_STEP` apart.
     driven: VecDeque<DVec2>,
+    /// How far the leader has driven, m.
+    driven_m: f64,
     /// The speed and acceleration a follower can use to keep up, m/s, m/s².
     follower_speed: f64,
     follower_accel: f64,
@@ -88,6 +90,7 @@ impl Guidance {
             planner,
             formation: FormationManager::new(cfg.formation.clone()),
             driven: VecDeque::new(),
+            driven_m: 0.0,
             follower_speed: cfg.follower_speed,
             follower_accel: cfg.follower_accel,
             wait_above: cfg.wait_for_followers_above,
@@ -104,6 +107,11 @@ impl Guidance {
     /// Whether the leader has reached its goal.
     pub fn arrived(&self) -> bool {
         self.planner.arrived()
+    }
+
+    /// How far the leader has driven, m.
+    pub fn driven_m(&self) -> f64 {
+        self.driven_m
     }
     /// The route being followed, once planned.
     pub fn route(&self) -> Option<&Route> {
@@ -140,6 +148,9 @@ impl Guidance {
             .is_some_and(|q| (p - *q).length() < PATH_STEP)
         {
             return;
+        }
+        if let Some(q) = self.driven.back() {
+            self.driven_m += q.distance(p);
         }
         self.driven.push_back(p);
         if self.driven.len() as f64 * PATH_STEP > DRIVEN_KEPT {

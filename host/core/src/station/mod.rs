@@ -36,6 +36,7 @@ mod orders;
 mod radio;
 mod robots;
 mod smoothing;
+mod story;
 
 use glam::DVec2;
 use protocol::link::{Link, Timing};
@@ -63,10 +64,11 @@ use robots::line_order::LineOrder;
 use robots::spacing::{self, Spacing};
 use robots::way::Blocking;
 pub use smoothing::TurnRateSmoother;
+pub use story::{Ending, Progress};
 
 use crate::formation::{FollowerStatus, FormationManager, FormationSpec};
 use crate::geometry::map::Map;
-use crate::perception::tracking::{TrackView, Tracker};
+use crate::perception::tracking::{Motion, TrackView, Tracker};
 use crate::perception::{Change, Perception, PerceptionLimits};
 use crate::planner::route::Route;
 use crate::planner::{PlanPose, PlannerEvent, PlannerParams};
@@ -79,6 +81,17 @@ type Robots<'a> = (&'a [spacing::Body], &'a [spacing::Body]);
 /// what the formation reaches before it has moved on (people standing farther off have
 /// mostly walked on by then), m. The scanner tracks what moves much farther.
 const MARK_REACH_M: f64 = 8.0;
+
+/// A track not judged yet moves where its filter's speed is over this, m/s, and over
+/// twice its sigma: a walker, not the noise of something standing.
+const NEW_MOVING_MPS: f64 = 0.5;
+
+/// Whether a track not judged yet already moves, by its filter: person-sized, faster than
+/// [`NEW_MOVING_MPS`] and twice its velocity's sigma.
+fn moves(v: &TrackView) -> bool {
+    let speed = v.velocity.length();
+    v.radius <= 0.5 && speed > NEW_MOVING_MPS && speed > 2.0 * v.velocity_sigma
+}
 
 /// Most robots one base station serves.
 pub const MAX_ROBOTS: usize = 1024;
@@ -232,6 +245,10 @@ pub struct BaseStation {
     desk: Desk,
     /// The points the followers were told to make for last period.
     orders: orders::Told,
+    /// When the fleet set off (the gate opened), station ms.
+    running_since_ms: Option<u32>,
+    /// The followers held for people, and the point each makes for.
+    people_holds: orders::Told,
 }
 
 impl BaseStation {
@@ -281,6 +298,8 @@ impl BaseStation {
             line_order: LineOrder::default(),
             desk: Desk::default(),
             orders: orders::Told::new(),
+            running_since_ms: None,
+            people_holds: orders::Told::new(),
         }
     }
 
@@ -429,8 +448,9 @@ impl BaseStation {
         let bodies = self.fleet.bodies(now_ms);
         let positions = drive::positions(leader.pose.position, &bodies, self.cfg.leader);
         let footprint = self.guidance.formation().spec().footprint;
-        let (predicted, crowded) = self.movers.observe(now_s, &positions, footprint, &tracks);
-        self.guidance.set_crowded(crowded);
+        let (predicted, crowd) = self.movers.observe(now_s, &positions, footprint, &tracks);
+        self.guidance.set_crowded(crowd.line);
+        let crowded = crowd.dense;
         let look = self.guidance.look(now_s, &leader, &statuses, &self.world);
         if let Some(change) = look.change {
             tracing::info!(
@@ -469,13 +489,19 @@ impl BaseStation {
         self.drive_leader(&leader, &look, &decision, &bodies, now_ms);
     }
 
-    /// The tracks judged moving that the station acts on (none in a baseline that
-    /// ignores them).
+    /// The tracks that move, that the station acts on (none in a baseline that ignores
+    /// them): those judged moving, and those not judged yet whose filter already says
+    /// they move (judging takes two novel scans half a second apart, longer for two
+    /// people walking side by side; someone stepping off the kerb beside the fleet reaches
+    /// it in two seconds).
     fn moving_tracks(&self, now_ms: u32) -> Vec<TrackView> {
-        match self.cfg.movers {
-            MoverPolicy::Heed => self.tracker.moving(now_ms).collect(),
-            MoverPolicy::Ignore | MoverPolicy::Parked => Vec::new(),
+        if self.cfg.movers != MoverPolicy::Heed {
+            return Vec::new();
         }
+        self.tracker
+            .views(now_ms)
+            .filter(|v| v.motion == Motion::Moving || v.motion == Motion::New && moves(v))
+            .collect()
     }
 
     /// What every period needs whatever the gate says: handshakes, slots when due, the
@@ -568,6 +594,7 @@ impl BaseStation {
             return false;
         }
         self.gate = Gate::Running;
+        self.running_since_ms = Some(now_ms);
         tracing::info!("fleet ready");
         self.events.push(StationEvent::FleetReady { at_ms: now_ms });
         true
@@ -667,6 +694,11 @@ impl BaseStation {
         });
         self.operator.set(command);
         self.send(Address::Broadcast, now_ms, &command.message());
+    }
+
+    /// Whether the localization watch halts the fleet.
+    fn localization_halted(&self) -> bool {
+        self.fix_watch.as_ref().is_some_and(FixWatch::halted)
     }
 
     /// The operator's Stop or emergency stop in force, if any.

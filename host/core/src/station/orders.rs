@@ -63,15 +63,25 @@ impl BaseStation {
         avoid
     }
 
-    /// The followers the leader's pace holds for people, each where it can stop.
-    fn hold_for_people(&self, held: &[u16], following: &[spacing::Body]) -> Vec<Proposal> {
-        following
+    /// The followers the leader's pace holds for people, each where its control point was
+    /// when the hold began: it brakes as hard as its firmware allows and stands (a point
+    /// it could just stop at would have it creep on into them at the end of its stop).
+    fn hold_for_people(&mut self, held: &[u16], following: &[spacing::Body]) -> Vec<Proposal> {
+        let offset = self.cfg.control_offset;
+        let before = std::mem::take(&mut self.people_holds);
+        for f in following.iter().filter(|f| held.contains(&f.id)) {
+            let point = before
+                .get(&f.id)
+                .copied()
+                .unwrap_or_else(|| f.position + DVec2::from_angle(f.heading) * offset);
+            self.people_holds.insert(f.id, point);
+        }
+        self.people_holds
             .iter()
-            .filter(|f| held.contains(&f.id))
-            .map(|f| Proposal {
-                robot: f.id,
+            .map(|(robot, point)| Proposal {
+                robot: *robot,
                 kind: Kind::Hold,
-                point: spacing::stop_point(f, self.cfg.control_offset, self.cfg.yield_brake),
+                point: *point,
             })
             .collect()
     }

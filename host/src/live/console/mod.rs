@@ -287,6 +287,7 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         "blend": station.formation().blend(),
         "hold": station.operator_hold().map(|h| h.name()),
         "arrived": station.arrived(),
+        "progress": station.progress(now_ms),
         "events": events,
         "tracks": tracks,
     })

@@ -28,6 +28,22 @@ const RESUMED_AFTER_S: f64 = 1.0;
 /// half-width, the footprint and a margin, m.
 const ASIDE_M: f64 = 1.2;
 const ASIDE_AHEAD_M: f64 = 0.8;
+/// Someone "comes along the lane" whose way is within this angle of the leader's
+/// heading, either direction: steering out of a crosser's way stalls the fleet in it.
+const ALONG_WITHIN_RAD: f64 = 0.52;
+/// ... and whose way passes within this of the leader: the wide shape's half-width and a
+/// cyclist's, m.
+const ALONG_LANE_M: f64 = 2.5;
+/// ... and who moves faster than this: someone standing in the lane is gone round, m/s.
+const ALONG_MOVING_MPS: f64 = 0.5;
+
+/// Movers round the fleet: whether they crowd its way (`line`: the wide shape gives way
+/// to the line) and whether they are a crowd (`dense`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Crowd {
+    pub line: bool,
+    pub dense: bool,
+}
 
 /// How the fleet goes among what moves, as the operator is told.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -96,18 +112,23 @@ impl Movers {
     }
 
     /// The movers as predicted this period (`robots`: the leader first), and whether they
-    /// crowd the fleet's way.
+    /// crowd the fleet's way (the line) and whether they are a crowd (nobody walks on for
+    /// long there, and the fleet moves no more than its pace).
     pub fn observe<'a>(
         &mut self,
         now_s: f64,
         robots: &[DVec2],
         footprint: f64,
         tracks: &'a [TrackView],
-    ) -> (Vec<Mover<'a>>, bool) {
+    ) -> (Vec<Mover<'a>>, Crowd) {
         let movers =
             self.prediction
                 .step(now_s, robots, footprint, tracks, self.spec.personal_space_m);
-        (movers, self.prediction.crowded(now_s))
+        let crowd = Crowd {
+            line: self.prediction.crowded(now_s),
+            dense: self.prediction.dense(now_s),
+        };
+        (movers, crowd)
     }
 
     /// The leader's pace this period (`ctx.pace`: the route's, m/s).
@@ -127,7 +148,11 @@ impl Movers {
                 holds: Vec::new(),
             }
         } else {
-            let aside = self.aside_points(fleet.leader.pose);
+            let aside = if movers.iter().any(|m| along_the_lane(m, fleet.leader.pose)) {
+                self.aside_points(fleet.leader.pose)
+            } else {
+                Vec::new()
+            };
             pace::choose(fleet, movers, (ctx, site), self.last, &aside)
         };
         tracing::trace!(now_s, chosen = ?choice.candidate, key = ?choice.key, "pace");
@@ -223,4 +248,14 @@ fn manner_of(choice: &Choice, target: f64, held: bool) -> Manner {
         Candidate::Hurry => Manner::ClearingWay,
         _ => Manner::Route,
     }
+}
+
+/// Whether `m` comes along the leader's lane, from ahead or from behind.
+fn along_the_lane(m: &Mover, leader: crate::geometry::PlanPose) -> bool {
+    let v = m.velocity();
+    let h = DVec2::from_angle(leader.heading);
+    let off = (m.track.position - leader.position).dot(h.perp()).abs();
+    v.length() > ALONG_MOVING_MPS
+        && v.dot(h).abs() >= v.length() * ALONG_WITHIN_RAD.cos()
+        && off <= ALONG_LANE_M
 }

@@ -33,8 +33,12 @@ const NEAR_M: f64 = 8.0;
 const AIMING_S: f64 = 0.5;
 /// A mover "walks at" a robot whose footprint its mean way comes within this of, m.
 const AIMING_WITHIN_M: f64 = 0.15;
-/// This many moving within [`CROWD_NEAR_M`] of the leader crowd the way.
+/// This many moving within [`CROWD_NEAR_M`] of the leader crowd the way: three robots
+/// abreast would cross them as a 4 m wall.
 const CROWD_COUNT: usize = 2;
+/// This many make a crowd (0.035 persons/m²), where someone's way always crosses the
+/// fleet's within seconds; a street's two or three people walking by are not one.
+const DENSE_COUNT: usize = 4;
 const CROWD_NEAR_M: f64 = 6.0;
 /// The way is clear again once nobody has crowded it for this long: people in a crowd
 /// come in waves, s.
@@ -82,13 +86,14 @@ struct Manners {
 #[derive(Debug, Clone, Default)]
 pub struct Prediction {
     manners: HashMap<u32, Manners>,
-    /// When movers last crowded the way.
+    /// When movers last crowded the way, and when they were last a crowd.
     crowded_s: Option<f64>,
+    dense_s: Option<f64>,
 }
 
 impl Prediction {
     /// One period at `now_s`: each of `movers` judged (`robots`: every robot's position,
-    /// the leader first; `footprint`: theirs), and whether the way is crowded.
+    /// the leader first; `footprint`: theirs).
     pub fn step<'a>(
         &mut self,
         now_s: f64,
@@ -111,8 +116,11 @@ impl Prediction {
             if near >= CROWD_COUNT {
                 self.crowded_s = Some(now_s);
             }
+            if near >= DENSE_COUNT {
+                self.dense_s = Some(now_s);
+            }
         }
-        let crowded = self.crowded(now_s);
+        let dense = self.dense(now_s);
         movers
             .iter()
             .map(|m| {
@@ -121,7 +129,7 @@ impl Prediction {
                     track: m,
                     // In a crowd someone's way always crosses the fleet's within a few
                     // seconds: walking on for long is expected of nobody there.
-                    trust_after_s: if wary && !crowded {
+                    trust_after_s: if wary && !dense {
                         UNTRUSTED_S
                     } else {
                         TRUSTED_S
@@ -141,6 +149,11 @@ impl Prediction {
     /// abreast cross a crowd as a 4 m wall, in a line as one robot's width.
     pub fn crowded(&self, now_s: f64) -> bool {
         self.crowded_s.is_some_and(|t| now_s - t <= CROWD_CLEAR_S)
+    }
+
+    /// Whether the fleet was among a crowd within the last [`CROWD_CLEAR_S`].
+    pub fn dense(&self, now_s: f64) -> bool {
+        self.dense_s.is_some_and(|t| now_s - t <= CROWD_CLEAR_S)
     }
 
     /// Whether the robots cannot count on `m` to steer round them: not seen near them
