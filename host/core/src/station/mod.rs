@@ -86,6 +86,11 @@ const MARK_REACH_M: f64 = 8.0;
 /// twice its sigma: a walker, not the noise of something standing.
 const NEW_MOVING_MPS: f64 = 0.5;
 
+/// A track not judged yet counts only this far from what the scans hold and the map does
+/// not: hits along a parked van's side, seen from a fleet driving by, make new tracks
+/// that seem to move (a kerb's walker beside a mapped wall still counts), m.
+const NEW_OFF_SENSED_M: f64 = 1.5;
+
 /// Whether a track not judged yet already moves, by its filter: person-sized, faster than
 /// [`NEW_MOVING_MPS`] and twice its velocity's sigma.
 fn moves(v: &TrackView) -> bool {
@@ -500,7 +505,13 @@ impl BaseStation {
         }
         self.tracker
             .views(now_ms)
-            .filter(|v| v.motion == Motion::Moving || v.motion == Motion::New && moves(v))
+            .filter(|v| {
+                let clear = self
+                    .perception
+                    .obstacles()
+                    .all(|o| o.nearest(v.position).distance >= NEW_OFF_SENSED_M);
+                v.motion == Motion::Moving || v.motion == Motion::New && clear && moves(v)
+            })
             .collect()
     }
 
