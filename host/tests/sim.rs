@@ -136,22 +136,34 @@ fn basestation_sim_writes_report_and_figure() {
     };
     println!("decode: {} frames, {verified} verified", lines.len());
     // `decode --seed 3` derives the same key as the simulation: the same frames verify;
-    // another seed's key verifies none.
-    let by_seed = |seed: &str| {
+    // another seed's key verifies none, and says why; without a seed, the recording's own
+    // (its metadata) is taken. The closing line counts the verified frames.
+    let by_seed = |seed: Option<&str>| {
+        let mut args = vec!["decode", recording.to_str().unwrap()];
+        args.extend(seed.map(|s| ["--seed", s]).into_iter().flatten());
         let out = common::basestation()
-            .args(["decode", recording.to_str().unwrap(), "--seed", seed])
+            .args(args)
             .env_remove("SWEEPER_KEY_FILE")
             .env_remove("SWEEPER_FLEET_KEY")
             .output()
             .unwrap();
         assert!(out.status.success());
-        String::from_utf8_lossy(&out.stdout)
+        let n = String::from_utf8_lossy(&out.stdout)
             .lines()
             .filter(|l| l.contains("\"verified\":true"))
-            .count()
+            .count();
+        (n, String::from_utf8_lossy(&out.stderr).to_string())
     };
-    assert_eq!(by_seed("3"), verified);
-    assert_eq!(by_seed("4"), 0);
+    let (n, err) = by_seed(Some("3"));
+    assert_eq!(n, verified);
+    assert!(err.contains(&format!("{verified} verified")), "{err}");
+    let (n, err) = by_seed(Some("4"));
+    assert_eq!(n, 0);
+    assert!(err.contains("made with --seed 3, not 4"), "{err}");
+    assert!(err.contains("no frame verified"), "{err}");
+    let (n, err) = by_seed(None);
+    assert_eq!(n, verified, "{err}");
+    assert!(err.contains("from the recording's metadata"), "{err}");
     assert_eq!(count["/radio"].0, "RadioBytes");
     assert!(
         lines.len() as u64 >= count["/radio"].1,

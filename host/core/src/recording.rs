@@ -115,7 +115,8 @@ pub fn events_channel(ctx: &Arc<Context>) -> Channel<Log> {
     ctx.channel_builder(EVENTS_TOPIC).build::<Log>()
 }
 
-/// Logs one station event (its report name, and its robot if any) at `t_ns`.
+/// Logs one station event (its report name, and its robot if any) at `t_ns`, at its
+/// severity (Foxglove's log panel filters by it).
 pub fn log_event(channel: &Channel<Log>, event: &str, robot: Option<u16>, t_ns: u64) {
     let message = match robot {
         Some(id) => format!("{event} (robot {id})"),
@@ -124,7 +125,11 @@ pub fn log_event(channel: &Channel<Log>, event: &str, robot: Option<u16>, t_ns: 
     channel.log_with_time(
         &Log {
             timestamp: stamp(t_ns),
-            level: log::Level::Info as i32,
+            level: match crate::station::Severity::of(event) {
+                crate::station::Severity::Info => log::Level::Info,
+                crate::station::Severity::Warning => log::Level::Warning,
+                crate::station::Severity::Error => log::Level::Error,
+            } as i32,
             message,
             name: "base station".into(),
             ..Default::default()

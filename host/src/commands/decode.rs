@@ -6,8 +6,8 @@
 //! With the fleet key (`--key-file` / `SWEEPER_FLEET_KEY`), handshake frames are verified
 //! and the sessions they announce are learnt, so that later frames of those senders are
 //! verified too. Without it, or before a sender's session is seen, frames are decoded but
-//! marked `"verified": false`. A simulation's recording is verified with `--seed N`: `sim`
-//! derives its key from the seed.
+//! marked `"verified": false`. A simulation's recording is verified with the key `sim`
+//! derives from its seed: the one its metadata holds, or `--seed N`.
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
@@ -107,7 +107,12 @@ const MAX_RECORD: usize = 16 * 1024 * 1024;
 
 /// The frames of a recording's radio channel, one JSON line each, read as a stream: what
 /// is held at once is bounded by [`MAX_RECORD`] whatever the file says.
-fn decode_recording(file: std::fs::File, key: Option<&MasterKey>) -> anyhow::Result<()> {
+fn decode_recording(
+    file: std::fs::File,
+    given: Option<MasterKey>,
+    given_seed: Option<u64>,
+) -> anyhow::Result<()> {
+    let mut key = given;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
     let mut input = std::io::BufReader::new(file);
     let mut reader = LinearReader::new_with_options(
@@ -118,7 +123,7 @@ fn decode_recording(file: std::fs::File, key: Option<&MasterKey>) -> anyhow::Res
     let mut sessions = HashMap::new();
     // The channels of the radio topic (by id): nothing else of the file is kept.
     let mut radio = std::collections::HashSet::new();
-    let (mut frames, mut rejected) = (0u64, 0u64);
+    let mut count = Count::default();
     while let Some(event) = reader.next_event() {
         let (opcode, data) = match event.context("a damaged MCAP file")? {
             LinearReadEvent::ReadRequest(need) => {
@@ -142,6 +147,13 @@ fn decode_recording(file: std::fs::File, key: Option<&MasterKey>) -> anyhow::Res
             {
                 (header.log_time, data)
             }
+            mcap::records::Record::Metadata(m)
+                if m.name == base_station::recording::METADATA_NAME =>
+            {
+                let seed = m.metadata.get("seed").and_then(|s| s.parse::<u64>().ok());
+                key = key_from_metadata(key, given_seed, seed);
+                continue;
+            }
             _ => continue,
         };
         let (log_time, data) = message;
@@ -162,23 +174,82 @@ fn decode_recording(file: std::fs::File, key: Option<&MasterKey>) -> anyhow::Res
                 continue;
             };
             let mut line = match result {
-                Ok(raw) => decode_one(raw, key, &mut sessions),
+                Ok(raw) => decode_one(raw, key.as_ref(), &mut sessions),
                 Err(reason) => json!({"ok": false, "reject": reason.name()}),
             };
             line["t_s"] = json!(log_time as f64 / 1e9);
             line["sender"] = json!(from);
-            frames += 1;
-            if line["ok"] == json!(false) {
-                rejected += 1;
-            }
+            count.add(&line);
             if writeln!(out, "{line}").is_err() {
                 return Ok(());
             }
         }
     }
     out.flush().ok();
-    eprintln!("{frames} frames, {rejected} rejected");
+    count.report(key.is_some());
     Ok(())
+}
+
+/// The key a `sim` recording is verified with: the one given, else the one its metadata's
+/// seed derives; a seed given that differs from the recording's is said, not overridden.
+fn key_from_metadata(
+    key: Option<MasterKey>,
+    given_seed: Option<u64>,
+    recorded: Option<u64>,
+) -> Option<MasterKey> {
+    match (key, recorded) {
+        (None, Some(seed)) => {
+            eprintln!("verifying with the key of sim seed {seed}, from the recording's metadata");
+            Some(MasterKey::from_bytes(&hil_sim::world::sim_key_bytes(seed)))
+        }
+        (key, Some(seed)) if given_seed.is_some_and(|g| g != seed) => {
+            eprintln!(
+                "warning: the recording was made with --seed {seed}, not {}: its frames will \
+                 not verify (bad_tag); leave --seed out to take the recording's",
+                given_seed.unwrap_or_default()
+            );
+            key
+        }
+        (key, _) => key,
+    }
+}
+
+/// What a decode saw, for its closing line.
+#[derive(Debug, Default)]
+struct Count {
+    frames: u64,
+    verified: u64,
+    rejected: u64,
+    bad_tag: u64,
+}
+
+impl Count {
+    fn add(&mut self, line: &Value) {
+        self.frames += 1;
+        if line["ok"] == json!(false) {
+            self.rejected += 1;
+            if line["reject"] == json!("bad_tag") {
+                self.bad_tag += 1;
+            }
+        } else if line["verified"] == json!(true) {
+            self.verified += 1;
+        }
+    }
+
+    /// The closing line on stderr, with a hint where every sealed frame failed its tag.
+    fn report(&self, keyed: bool) {
+        eprintln!(
+            "{} frames, {} verified, {} rejected",
+            self.frames, self.verified, self.rejected
+        );
+        if keyed && self.verified == 0 && self.bad_tag > 0 {
+            eprintln!(
+                "no frame verified and {} failed their tag: the key (or --seed) is not the \
+                 one the frames were sealed with",
+                self.bad_tag
+            );
+        }
+    }
 }
 
 pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
@@ -195,7 +266,7 @@ pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
         if is_mcap {
             let file = std::fs::File::open(path)
                 .with_context(|| format!("cannot read {}", path.display()))?;
-            return decode_recording(file, key.as_ref());
+            return decode_recording(file, key, args.seed);
         }
     }
     let mut input: Box<dyn Read> = match &args.file {
@@ -209,7 +280,7 @@ pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
     let mut sessions = HashMap::new();
     let mut buf = [0u8; 4096];
     let mut offset = 0u64;
-    let (mut frames, mut rejected) = (0u64, 0u64);
+    let mut count = Count::default();
     loop {
         let n = match input.read(&mut buf) {
             Ok(0) => break,
@@ -227,16 +298,13 @@ pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
                 Err(reason) => json!({"ok": false, "reject": reason.name()}),
             };
             line["end_offset"] = json!(offset);
-            frames += 1;
-            if line["ok"] == json!(false) {
-                rejected += 1;
-            }
+            count.add(&line);
             if writeln!(out, "{line}").is_err() {
                 return Ok(()); // stdout closed (e.g. `| head`): stop quietly
             }
         }
     }
     out.flush().ok();
-    eprintln!("{frames} frames, {rejected} rejected");
+    count.report(key.is_some());
     Ok(())
 }

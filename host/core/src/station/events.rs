@@ -174,9 +174,70 @@ impl StationEvent {
     }
 }
 
+/// How much an event matters to whoever watches the run: what stopped a robot or the
+/// fleet for good is an error, what stopped it for a while or lost sight of something a
+/// warning, the rest information.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Severity {
+    Info,
+    Warning,
+    Error,
+}
+
+impl Severity {
+    /// An event's severity from its name (as in reports and recordings).
+    pub fn of(event: &str) -> Severity {
+        let halts = event.ends_with(":fleet_halted");
+        match event {
+            _ if halts => Severity::Error,
+            "leader_lost" | "no_route" | "operator_emergency_stop" => Severity::Error,
+            _ if event.starts_with("robot_fault:") => Severity::Warning,
+            "localization_lost" | "follower_behind" | "operator_stop" | "local_minimum_escape" => {
+                Severity::Warning
+            }
+            _ => Severity::Info,
+        }
+    }
+
+    /// Its lower-case name, as the console and the logs give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Severity::Info => "info",
+            Severity::Warning => "warning",
+            Severity::Error => "error",
+        }
+    }
+}
+
 /// Fault flags the station reports, with their names and whether they halt the fleet.
 pub(super) const REPORTED_FAULTS: [(u16, &str, bool); 3] = [
     (faults::WHEEL_STALL_LEFT, "wheel_stall_left", true),
     (faults::WHEEL_STALL_RIGHT, "wheel_stall_right", true),
     (faults::POSE_FIX_REJECTED, "pose_fix_rejected", false),
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn what_stops_the_fleet_is_an_error_and_a_wait_is_not() {
+        assert_eq!(Severity::of("leader_lost"), Severity::Error);
+        assert_eq!(Severity::of("operator_emergency_stop"), Severity::Error);
+        assert_eq!(
+            Severity::of("robot_fault:wheel_stall_left:fleet_halted"),
+            Severity::Error
+        );
+        assert_eq!(
+            Severity::of("localization_lost:fleet_halted"),
+            Severity::Error
+        );
+        assert_eq!(
+            Severity::of("robot_fault:pose_fix_rejected"),
+            Severity::Warning
+        );
+        assert_eq!(Severity::of("localization_lost"), Severity::Warning);
+        assert_eq!(Severity::of("yielding"), Severity::Info);
+        assert_eq!(Severity::of("goal_reached"), Severity::Info);
+    }
+}

@@ -233,8 +233,8 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
                 "id": id,
                 "role": if *id == leader { "leader" } else { "follower" },
                 "pose": t.map(|t| { let (x, y, h) = t.pose.to_si(); [x, y, h] }),
-                "mode": t.map(|t| format!("{:?}", t.mode)),
-                "faults": t.map(|t| t.faults),
+                "mode": t.map(|t| mode_words(t.mode)),
+                "faults": t.map(|t| fault_names(t.faults)),
                 "linked": peer.is_some_and(|p| p.is_linked()),
                 "seen_ms_ago": peer.and_then(|p| p.last_rx_ms).map(|r| now_ms.wrapping_sub(r)),
                 "v": t.map(|t| 0.5e-3 * (t.wheel_mm_s[0] as f64 + t.wheel_mm_s[1] as f64)),
@@ -265,7 +265,8 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         .iter()
         .map(|e| {
             let (at_ms, event, robot) = e.describe(leader);
-            json!({ "at_s": at_ms as f64 / 1000.0, "event": event, "robot": robot })
+            let severity = base_station::station::Severity::of(&event).name();
+            json!({ "at_s": at_ms as f64 / 1000.0, "event": event, "robot": robot, "severity": severity })
         })
         .collect();
     let gate = match station.gate() {
@@ -291,6 +292,41 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         "events": events,
         "tracks": tracks,
     })
+}
+
+/// A robot's mode as the operator reads it.
+fn mode_words(mode: protocol::messages::RobotMode) -> &'static str {
+    use protocol::messages::RobotMode as M;
+    match mode {
+        M::Idle => "idle",
+        M::Joining => "joining",
+        M::InFormation => "in formation",
+        M::Transforming => "changing shape",
+        M::Failsafe => "fail-safe stop",
+        M::Leading => "leading",
+        M::EmergencyStop => "emergency stop",
+    }
+}
+
+/// The fault flags a robot reports, by name (`protocol::messages::faults`).
+fn fault_names(flags: u16) -> Vec<&'static str> {
+    use protocol::messages::faults as f;
+    [
+        (f::LEADER_STATE_STALE, "leader_state_stale"),
+        (f::COMMAND_STALE, "command_stale"),
+        (f::NON_FINITE_INPUT, "non_finite_input"),
+        (f::WHEEL_STALL_LEFT, "wheel_stall_left"),
+        (f::WHEEL_STALL_RIGHT, "wheel_stall_right"),
+        (f::POSE_FIX_STALE, "pose_fix_stale"),
+        (f::POSE_FIX_REJECTED, "pose_fix_rejected"),
+        (f::EMERGENCY_STOP, "emergency_stop"),
+        (f::NOT_LINKED, "not_linked"),
+        (f::NOT_LOCALIZED, "not_localized"),
+    ]
+    .into_iter()
+    .filter(|(bit, _)| flags & bit != 0)
+    .map(|(_, name)| name)
+    .collect()
 }
 
 /// What the station believes moves or stands on the site: each track's place, velocity,
@@ -323,6 +359,18 @@ fn tracks_json(station: &BaseStation, now_ms: u32) -> Vec<Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn modes_and_faults_read_as_words() {
+        assert_eq!(
+            mode_words(protocol::messages::RobotMode::InFormation),
+            "in formation"
+        );
+        let flags =
+            protocol::messages::faults::WHEEL_STALL_LEFT | protocol::messages::faults::NOT_LINKED;
+        assert_eq!(fault_names(flags), ["wheel_stall_left", "not_linked"]);
+        assert!(fault_names(0).is_empty());
+    }
 
     #[test]
     fn commands_parse_and_nothing_else_does() {

@@ -278,9 +278,25 @@ async fn command(shared: &Shared, request: Request<Incoming>) -> Response<Full<B
             "expected {\"command\": \"stop\" | \"emergency_stop\" | \"resume\"}",
         );
     };
+    if c == OperatorCommand::Resume && halted(shared) {
+        return respond(
+            409,
+            "text/plain",
+            "refused: the fleet halted for good (a robot cannot drive as told); \
+             clear the fault and start the run again",
+        );
+    }
     match shared.commands.try_send(c) {
         Ok(()) => json(200, format!("{{\"sent\":\"{}\"}}", c.name())),
         Err(TrySendError::Full(_)) => respond(503, "text/plain", "too many commands waiting"),
         Err(TrySendError::Disconnected(_)) => respond(410, "text/plain", "the run has ended"),
     }
+}
+
+/// Whether the last snapshot says the fleet halted for good: Resume cannot lift that.
+fn halted(shared: &Shared) -> bool {
+    let Ok(snapshot) = shared.snapshot.lock().map(|s| s.clone()) else {
+        return false;
+    };
+    serde_json::from_str::<serde_json::Value>(&snapshot).is_ok_and(|s| s["gate"] == "halted")
 }
