@@ -38,7 +38,10 @@ step "no_std crates build for the MCU target"
 cargo build --locked --release --target thumbv7em-none-eabihf -p protocol -p control-core
 
 step "host workspace tests"
-cargo test --locked --workspace --release
+log=target/test-all.log
+mkdir -p target
+cargo test --locked --workspace --release 2>&1 | tee "$log"
 
+passed=$(grep -Eo '^test result: ok\. [0-9]+ passed' "$log" | awk '{s += $4} END {print s + 0}')
 echo
-echo "all tests passed"
+echo "all tests passed: $passed tests in $((SECONDS / 60)) min $((SECONDS % 60)) s"

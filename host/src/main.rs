@@ -49,7 +49,21 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    use clap::{CommandFactory, FromArgMatches};
+    // `-V` says which revision it was built from: a field report names the build.
+    let version: &'static str = Box::leak(
+        format!(
+            "{} (revision {})",
+            env!("CARGO_PKG_VERSION"),
+            base_station::recording::GIT_REVISION
+        )
+        .into_boxed_str(),
+    );
+    let matches = Cli::command().version(version).get_matches();
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
     // A live run says how it goes at the default level: the station's progress (links,
     // fleet ready, shape changes, yielding) and what is wrong (diagnosis, warnings).
     let live = matches!(cli.command, Command::Run(_) | Command::Robots(_));

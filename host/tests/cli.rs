@@ -53,6 +53,35 @@ fn shipped_scenarios_check_clean() {
         assert_eq!(code, 0, "{err}");
         assert!(out.contains("ok"));
     }
+    // What moves in a scenario is listed: each mover, each crowd.
+    let (_, out, _) = basestation(&["check", "street-crossing"], None);
+    assert!(
+        out.contains("mover 2     oblivious pedestrian, 1.1 m/s from 62.5 s"),
+        "{out}"
+    );
+    let (_, out, _) = basestation(&["check", "plaza-crowd"], None);
+    assert!(
+        out.contains("crowd 0     social at 0.10 persons/m²"),
+        "{out}"
+    );
+}
+
+/// A shape the robots cannot hold (a slot on the leader) is refused, with its line.
+#[test]
+fn check_refuses_a_shape_whose_robots_would_touch() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/paper-obstacles.toml"
+    ))
+    .unwrap();
+    let tight = text.replacen("distance = 3.0", "distance = 0.5", 1);
+    assert_ne!(tight, text, "the shipped file's slot distance");
+    let (code, err) = check_text("tight.toml", &tight);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("field `formation.distance`: slot 0 is 0.50 m from the leader"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -595,7 +595,16 @@ fn the_page_says_what_is_wrong_and_what_is_stale() {
     std::thread::sleep(Duration::from_secs(4));
     assert_eq!(page.class("banner"), "hidden", "nothing wrong yet");
     let cells = page.eval("document.querySelectorAll('#robots tr:first-child td').length");
-    assert_eq!(cells, 5, "robot, mode, link, speed, off its slot");
+    assert_eq!(cells, 6, "robot, mode, link, speed, off its slot, faults");
+    // Modes in words, not the protocol's enum names.
+    let modes = page.eval(
+        "[...document.querySelectorAll('#robots tr td:nth-child(2)')].map((t) => t.textContent).join(',')",
+    );
+    let modes = modes.as_str().unwrap();
+    assert!(
+        modes.contains("leading") && modes.contains("in formation"),
+        "{modes}"
+    );
     page.screenshot(&dir.join("console-live.png"));
 
     // A confirmation not given is withdrawn after 5 s.
@@ -701,6 +710,38 @@ fn a_halting_fault_is_a_banner_in_words() {
     assert!(
         !events.as_str().unwrap().contains("robot_fault:"),
         "events in words: {events}"
+    );
+    // The fault in robot 1's row, its event an error, and Resume refused with a reason:
+    // greyed on the page, and 409 from the station if sent all the same.
+    let faults =
+        page.eval("document.querySelector('#robots tr:nth-child(2) td:nth-child(6)').textContent");
+    assert!(
+        faults.as_str().unwrap().contains("left wheel stalled"),
+        "{faults}"
+    );
+    let errors = page
+        .eval("[...document.querySelectorAll('#events .bad')].map((e) => e.textContent).join('|')");
+    assert!(
+        errors.as_str().unwrap().contains("left wheel stalled"),
+        "{errors}"
+    );
+    assert_eq!(
+        page.eval("document.getElementById('resume').disabled"),
+        true
+    );
+    let title = page.eval("document.getElementById('resume').title");
+    assert!(
+        title.as_str().unwrap().contains("halted for good"),
+        "{title}"
+    );
+    let answer = page.eval(
+        "fetch('/api/command', { method: 'POST', headers, body: '{\"command\":\"resume\"}' })\
+         .then(async (r) => r.status + ' ' + (await r.text()))",
+    );
+    let answer = answer.as_str().unwrap();
+    assert!(
+        answer.starts_with("409 refused: the fleet halted for good"),
+        "{answer}"
     );
 }
 

@@ -401,3 +401,70 @@ fn an_interrupted_realtime_sim_writes_whole_files() {
         .collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+/// Every way a run can end says why, in one line read the same in the summary, the
+/// report and the figure's title (issue 53): the goal, the time up short of it with the
+/// distance left, the leader lost, a fault that halted the fleet. Each figure pins what
+/// happened (numbered, listed with its time) and explains its plots' marks.
+#[test]
+fn every_ending_says_why() {
+    let dir = common::scratch("e2e-why");
+    let passage = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/paper-passage.toml"
+    ))
+    .unwrap();
+    let short = dir.join("short.toml");
+    std::fs::write(&short, passage + "\n[sim]\nduration_s = 20.0\n").unwrap();
+    let cases: [(&str, &str, Vec<&str>, &str); 4] = [
+        ("goal", "paper-passage", vec![], "goal reached at "),
+        ("time", short.to_str().unwrap(), vec![], "time up "),
+        (
+            "leader",
+            "paper-passage",
+            vec!["--fault", r#"{ at_s = 30, kind = "leader_dies" }"#],
+            "the leader was lost at 30.",
+        ),
+        (
+            "fault",
+            "paper-passage",
+            vec![
+                "--fault",
+                r#"{ at_s = 20, kind = "stuck_wheel", robot = 1 }"#,
+            ],
+            "robot 1 reported wheel stall left",
+        ),
+    ];
+    for (name, scenario, args, expected) in cases {
+        let sub = dir.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        let (out, report) = common::sim_into(&sub, scenario, &args);
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        let why = r["why"].as_str().unwrap().to_string();
+        assert!(why.contains(expected), "{name}: {why}");
+        let summary = String::from_utf8_lossy(&out.stdout);
+        assert!(summary.lines().any(|l| l == why), "{name}: {summary}");
+        let svg = std::fs::read_to_string(sub.join("figure.svg")).unwrap();
+        assert!(svg.contains(&why), "{name}: the figure's title");
+        assert!(svg.contains("a shape change under way") || name == "time");
+        assert!(svg.contains("leader 0: v solid, ω dashed"), "{name}");
+        if name == "time" {
+            assert!(
+                why.contains("m short of the goal (waypoint 1 of 1"),
+                "{why}"
+            );
+            assert_eq!(r["ending"], "time_up");
+        }
+        if name == "goal" {
+            // The paper's own scenario: its figures beside the paper's, its shape changes
+            // pinned on the figure and listed with their times.
+            assert!(summary.contains("paper (L / F1 / F2)"), "{summary}");
+            assert!(svg.contains("into the line") && svg.contains("goal reached"));
+        }
+    }
+    // Elsewhere the paper's columns are left out.
+    let (out, _) = common::sim_into(&dir, "street-crossing", &[]);
+    let summary = String::from_utf8_lossy(&out.stdout);
+    assert!(!summary.contains("paper"), "{summary}");
+}

@@ -41,10 +41,13 @@ pub fn run_metadata(
     m.insert("seed".into(), seed.map_or("none".into(), |s| s.to_string()));
     m.insert("firmware".into(), firmware.into());
     m.insert("version".into(), env!("CARGO_PKG_VERSION").into());
-    m.insert("git_revision".into(), env!("SWEEPER_GIT_REVISION").into());
+    m.insert("git_revision".into(), GIT_REVISION.into());
     m.insert("started_utc".into(), utc);
     m
 }
+
+/// The source revision this build was made from (`unknown` outside a git checkout).
+pub const GIT_REVISION: &str = env!("SWEEPER_GIT_REVISION");
 
 /// The frame every position is in: the site's metric frame.
 pub const FRAME: &str = "site";

@@ -112,18 +112,18 @@ fn decode_recording(
     given: Option<MasterKey>,
     given_seed: Option<u64>,
 ) -> anyhow::Result<()> {
-    let mut key = given;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
     let mut input = std::io::BufReader::new(file);
     let mut reader = LinearReader::new_with_options(
         LinearReaderOptions::default().with_record_length_limit(MAX_RECORD),
     );
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    let mut decoders: HashMap<String, FrameDecoder> = HashMap::new();
-    let mut sessions = HashMap::new();
+    let mut air = Air {
+        key: given,
+        ..Air::default()
+    };
     // The channels of the radio topic (by id): nothing else of the file is kept.
     let mut radio = std::collections::HashSet::new();
-    let mut count = Count::default();
     while let Some(event) = reader.next_event() {
         let (opcode, data) = match event.context("a damaged MCAP file")? {
             LinearReadEvent::ReadRequest(need) => {
@@ -135,29 +135,56 @@ fn decode_recording(
             }
             LinearReadEvent::Record { opcode, data } => (opcode, data),
         };
-        let message = match mcap::parse_record(opcode, data).context("a damaged MCAP record")? {
+        let record = mcap::parse_record(opcode, data).context("a damaged MCAP record")?;
+        let open = match record {
             mcap::records::Record::Channel(c) => {
-                if c.topic == base_station::recording::RADIO_TOPIC {
-                    radio.insert(c.id);
-                }
-                continue;
+                let ours = c.topic == base_station::recording::RADIO_TOPIC;
+                ours.then(|| radio.insert(c.id));
+                true
             }
             mcap::records::Record::Message { header, data }
                 if radio.contains(&header.channel_id) =>
             {
-                (header.log_time, data)
+                air.message(header.log_time, &data, &mut out)?
             }
             mcap::records::Record::Metadata(m)
                 if m.name == base_station::recording::METADATA_NAME =>
             {
                 let seed = m.metadata.get("seed").and_then(|s| s.parse::<u64>().ok());
-                key = key_from_metadata(key, given_seed, seed);
-                continue;
+                air.key = key_from_metadata(air.key.take(), given_seed, seed);
+                true
             }
-            _ => continue,
+            _ => true,
         };
-        let (log_time, data) = message;
-        let sent: Value = serde_json::from_slice(&data).context("a radio message")?;
+        if !open {
+            return Ok(());
+        }
+    }
+    out.flush().ok();
+    air.count.report(air.key.is_some());
+    Ok(())
+}
+
+/// A recording's radio channel as `decode` reads it: a frame decoder per sender, the
+/// sessions learnt, the key, what was seen.
+#[derive(Default)]
+struct Air {
+    key: Option<MasterKey>,
+    decoders: HashMap<String, FrameDecoder>,
+    sessions: HashMap<Address, u32>,
+    count: Count,
+}
+
+impl Air {
+    /// One radio message (`data`, at `log_time` ns): its frames out as JSON lines; false
+    /// when `out` is closed.
+    fn message(
+        &mut self,
+        log_time: u64,
+        data: &[u8],
+        out: &mut impl Write,
+    ) -> anyhow::Result<bool> {
+        let sent: Value = serde_json::from_slice(data).context("a radio message")?;
         let (Some(from), Some(bytes)) = (
             sent["from"].as_str(),
             sent["hex"].as_str().and_then(|h| hex::decode(h).ok()),
@@ -165,29 +192,27 @@ fn decode_recording(
             anyhow::bail!("a radio message without `from` and `hex`");
         };
         // A sender per name, of the few a recording has (base, air, the attacker).
-        if decoders.len() >= 64 && !decoders.contains_key(from) {
+        if self.decoders.len() >= 64 && !self.decoders.contains_key(from) {
             anyhow::bail!("more than 64 senders on the radio channel");
         }
-        let decoder = decoders.entry(from.to_string()).or_default();
+        let decoder = self.decoders.entry(from.to_string()).or_default();
         for b in bytes {
             let Some(result) = decoder.push(b) else {
                 continue;
             };
             let mut line = match result {
-                Ok(raw) => decode_one(raw, key.as_ref(), &mut sessions),
+                Ok(raw) => decode_one(raw, self.key.as_ref(), &mut self.sessions),
                 Err(reason) => json!({"ok": false, "reject": reason.name()}),
             };
             line["t_s"] = json!(log_time as f64 / 1e9);
             line["sender"] = json!(from);
-            count.add(&line);
+            self.count.add(&line);
             if writeln!(out, "{line}").is_err() {
-                return Ok(());
+                return Ok(false);
             }
         }
+        Ok(true)
     }
-    out.flush().ok();
-    count.report(key.is_some());
-    Ok(())
 }
 
 /// The key a `sim` recording is verified with: the one given, else the one its metadata's

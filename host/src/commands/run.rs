@@ -18,7 +18,8 @@ use serde_json::json;
 #[derive(Args, Debug)]
 #[command(group(clap::ArgGroup::new("transport").required(true).args(["port", "udp"])))]
 pub struct RunArgs {
-    /// A site/scenario file, or a shipped scenario's name.
+    /// A scenario file, or a shipped scenario's name (paper-obstacles, paper-passage,
+    /// street-crossing, plaza-crowd).
     pub scenario: String,
     /// Serial device of the radio modem (e.g. /dev/ttyUSB0).
     #[arg(long)]

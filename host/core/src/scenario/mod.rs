@@ -186,6 +186,64 @@ pub enum FaultKind {
     CapturedRobot,
 }
 
+impl FaultKind {
+    /// Every kind, in the order they were added (the docs' table lists each).
+    pub const ALL: [FaultKind; 21] = {
+        use FaultKind as K;
+        [
+            K::LossBurst,
+            K::SilentDownlink,
+            K::SilentUplink,
+            K::LatencySpike,
+            K::Reboot,
+            K::LeaderDies,
+            K::WrongKeyAttacker,
+            K::ReplayAttacker,
+            K::GarbageFlood,
+            K::StuckWheel,
+            K::WeakMotor,
+            K::EncoderDead,
+            K::PoseJump,
+            K::BaseRestart,
+            K::Reorder,
+            K::Duplicate,
+            K::Corruption,
+            K::DelayRelay,
+            K::HelloReplay,
+            K::WelcomeHoldback,
+            K::CapturedRobot,
+        ]
+    };
+
+    /// Its name in a site file.
+    pub fn name(self) -> &'static str {
+        use FaultKind as K;
+        match self {
+            K::LossBurst => "loss_burst",
+            K::SilentDownlink => "silent_downlink",
+            K::SilentUplink => "silent_uplink",
+            K::LatencySpike => "latency_spike",
+            K::Reboot => "reboot",
+            K::LeaderDies => "leader_dies",
+            K::WrongKeyAttacker => "wrong_key_attacker",
+            K::ReplayAttacker => "replay_attacker",
+            K::GarbageFlood => "garbage_flood",
+            K::StuckWheel => "stuck_wheel",
+            K::WeakMotor => "weak_motor",
+            K::EncoderDead => "encoder_dead",
+            K::PoseJump => "pose_jump",
+            K::BaseRestart => "base_restart",
+            K::Reorder => "reorder",
+            K::Duplicate => "duplicate",
+            K::Corruption => "corruption",
+            K::DelayRelay => "delay_relay",
+            K::HelloReplay => "hello_replay",
+            K::WelcomeHoldback => "welcome_holdback",
+            K::CapturedRobot => "captured_robot",
+        }
+    }
+}
+
 /// One scheduled fault. Fields beyond `at_s` and `kind` depend on the kind.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -761,6 +819,27 @@ impl Scenario {
             ShapeName::Triangle => "triangle",
             ShapeName::V => "v",
             ShapeName::Custom => "custom",
+        }
+    }
+}
+
+#[cfg(test)]
+mod fault_kinds {
+    use super::FaultKind;
+
+    /// A kind added to the enum does not compile in [`FaultKind::name`] until it is named;
+    /// named, it fails here until it is in `ALL` under the name serde reads.
+    #[test]
+    fn every_kind_is_listed_once_by_its_file_name() {
+        let mut names = std::collections::BTreeSet::new();
+        for k in FaultKind::ALL {
+            assert_eq!(serde_json::to_value(k).unwrap(), k.name(), "{k:?}");
+            assert!(names.insert(k.name()), "{k:?} twice");
+        }
+        let named = FaultKind::ALL.map(FaultKind::name);
+        for k in FaultKind::ALL {
+            let back: FaultKind = serde_json::from_value(k.name().into()).unwrap();
+            assert!(named.contains(&back.name()));
         }
     }
 }

@@ -34,6 +34,11 @@ const MAX_PROBLEMS: usize = 100;
 struct Problems(Vec<(String, String)>, usize);
 
 impl Problems {
+    /// How many problems so far.
+    fn count(&self) -> usize {
+        self.0.len() + self.1
+    }
+
     fn fail(&mut self, field: &str, msg: &str) {
         if self.0.len() < MAX_PROBLEMS {
             self.0.push((field.to_string(), msg.to_string()));
@@ -335,6 +340,7 @@ impl Scenario {
 
     fn check_formation(&self, p: &mut Problems, robots_ok: bool) {
         let f = &self.formation;
+        let before = p.count();
         p.positive("formation.distance", f.distance);
         p.finite("formation.angle_deg", &[f.angle_deg]);
         if f.line_spacing < 2.0 * self.robot.footprint_radius || !f.line_spacing.is_finite() {
@@ -361,6 +367,42 @@ impl Scenario {
             for (i, s) in f.slots.iter().enumerate() {
                 p.positive(&format!("formation.slots[{i}].distance"), s.distance);
                 p.finite(&format!("formation.slots[{i}].angle_deg"), &[s.angle_deg]);
+            }
+        }
+        if robots_ok && p.count() == before {
+            self.check_shape_room(p);
+        }
+    }
+
+    /// The wide shape must leave every robot room: no slot within two footprint radii of
+    /// the leader or of another slot (the robots would touch standing in it).
+    fn check_shape_room(&self, p: &mut Problems) {
+        let spec = self.formation_spec();
+        let field = |k: usize| match self.formation.shape {
+            ShapeName::Custom => format!("formation.slots[{k}]"),
+            _ => "formation.distance".to_string(),
+        };
+        let at = |(l, a): (f64, f64)| DVec2::new(l * a.cos(), l * a.sin());
+        let mut points = vec![("the leader".to_string(), DVec2::ZERO)];
+        points.extend(
+            spec.wide_slots()
+                .into_iter()
+                .enumerate()
+                .map(|(k, s)| (format!("slot {k}"), at(s))),
+        );
+        let need = 2.0 * self.robot.footprint_radius;
+        for (k, (name, q)) in points.iter().enumerate().skip(1) {
+            let near = points[..k].iter().find(|(_, o)| o.distance(*q) < need);
+            if let Some((other, o)) = near {
+                p.fail(
+                    &field(k - 1),
+                    &format!(
+                        "{name} is {:.2} m from {other}: robots {need:.2} m across would touch \
+                         (set the slots farther apart)",
+                        o.distance(*q)
+                    ),
+                );
+                return;
             }
         }
     }

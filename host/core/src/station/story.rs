@@ -211,3 +211,80 @@ impl BaseStation {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every way a run ends has its one line, and its name in the report.
+    #[test]
+    fn every_ending_has_its_line() {
+        let progress = Progress {
+            done_m: 30.0,
+            left_m: 12.5,
+            share: 0.7,
+            waypoint: 2,
+            waypoints: 3,
+            eta_s: Some(25.0),
+        };
+        let cases = [
+            (
+                Ending::GoalReached { at_s: 71.5 },
+                "goal_reached",
+                "goal reached at 71.5 s",
+            ),
+            (
+                Ending::Stopped {
+                    how: "emergency_stop",
+                    at_s: Some(12.0),
+                },
+                "stopped",
+                "stopped by the operator (emergency_stop) at 12.0 s",
+            ),
+            (
+                Ending::Halted {
+                    robot: 2,
+                    fault: "wheel stall left".into(),
+                    at_s: 8.25,
+                },
+                "halted",
+                "halted at 8.2 s: robot 2 reported wheel stall left",
+            ),
+            (
+                Ending::LocalizationLost { at_s: 40.0 },
+                "localization_lost",
+                "halted at 40.0 s: the robots lost their localization",
+            ),
+            (
+                Ending::LeaderLost { at_s: 30.1 },
+                "leader_lost",
+                "the leader was lost at 30.1 s and never came back",
+            ),
+            (
+                Ending::NoRoute {
+                    why: "the way is blocked".into(),
+                    at_s: 5.0,
+                },
+                "no_route",
+                "no route to the goal at 5.0 s: the way is blocked",
+            ),
+            (
+                Ending::TimeUp {
+                    progress: Some(progress),
+                },
+                "time_up",
+                "time up 12.5 m short of the goal (waypoint 2 of 3, 70 % of the way)",
+            ),
+            (
+                Ending::TimeUp { progress: None },
+                "time_up",
+                "time up before the leader set off",
+            ),
+            (Ending::NeverLinked, "never_linked", "no robot ever linked"),
+        ];
+        for (ending, kind, why) in cases {
+            assert_eq!(ending.kind(), kind);
+            assert_eq!(ending.why(), why);
+        }
+    }
+}

@@ -234,7 +234,7 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
                 "role": if *id == leader { "leader" } else { "follower" },
                 "pose": t.map(|t| { let (x, y, h) = t.pose.to_si(); [x, y, h] }),
                 "mode": t.map(|t| mode_words(t.mode)),
-                "faults": t.map(|t| fault_names(t.faults)),
+                "faults": faults_of(station, *id, t.map_or(0, |t| t.faults)),
                 "linked": peer.is_some_and(|p| p.is_linked()),
                 "seen_ms_ago": peer.and_then(|p| p.last_rx_ms).map(|r| now_ms.wrapping_sub(r)),
                 "v": t.map(|t| 0.5e-3 * (t.wheel_mm_s[0] as f64 + t.wheel_mm_s[1] as f64)),
@@ -306,6 +306,23 @@ fn mode_words(mode: protocol::messages::RobotMode) -> &'static str {
         M::Leading => "leading",
         M::EmergencyStop => "emergency stop",
     }
+}
+
+/// A robot's faults: those its telemetry reports now, and those the station recorded
+/// for it (a stalled wheel that halted the fleet reads clear once the robot stands).
+fn faults_of(station: &BaseStation, robot: u16, flags: u16) -> Vec<&'static str> {
+    let mut names = fault_names(flags);
+    for e in station.events() {
+        if let base_station::station::StationEvent::RobotFault {
+            robot: r, fault, ..
+        } = e
+        {
+            if *r == robot && !names.contains(fault) {
+                names.push(fault);
+            }
+        }
+    }
+    names
 }
 
 /// The fault flags a robot reports, by name (`protocol::messages::faults`).

@@ -1,6 +1,7 @@
 //! The run's figure, like the paper's: trajectories with obstacles and formation
 //! snapshots; tracking error over time; linear and angular velocities over time. SVG.
 
+use std::ops::Range;
 use std::path::Path;
 
 use base_station::geometry::Obstacle;
@@ -15,6 +16,8 @@ use glam::DVec2;
 use crate::movers::MoverState;
 use crate::report::Report;
 use crate::world::World;
+
+mod pins;
 
 const COLORS: [RGBColor; 6] = [
     RGBColor(200, 30, 30),
@@ -80,21 +83,40 @@ where
         .build_cartesian_2d(0.0..t_end, y)?)
 }
 
+/// A site this much wider than deep is drawn across the figure's width, the time plots
+/// side by side below it; a squarer one on the left, the time plots stacked on the right.
+const WIDE_SITE: f64 = 1.6;
+
 pub fn write_svg(world: &World, report: &Report, path: &Path) -> PlotResult {
-    let root = SVGBackend::new(path, (1500, 760)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let (left, right) = root.split_horizontally(760);
-    let (top, bottom) = right.split_vertically(380);
-    trajectories(world, report, &left)?;
-    errors(world, &top)?;
-    velocities(world, &bottom)?;
-    root.present()?;
+    let pins = pins::pins(&report.station_events);
+    let (lo, hi) = site_extent(world);
+    let aspect = (hi.0 - lo.0) / (hi.1 - lo.1).max(1e-6);
+    if aspect > WIDE_SITE {
+        let map_h = (1480.0 / aspect + 110.0).clamp(300.0, 640.0) as u32;
+        let root = SVGBackend::new(path, (1500, map_h + 380)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let (top, bottom) = root.split_vertically(map_h);
+        let (left, right) = bottom.split_horizontally(750);
+        trajectories(world, report, &top, &pins)?;
+        errors(world, &left, &pins)?;
+        velocities(world, &right, &pins)?;
+        root.present()?;
+    } else {
+        let root = SVGBackend::new(path, (1500, 760)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let (left, right) = root.split_horizontally(760);
+        let (top, bottom) = right.split_vertically(380);
+        trajectories(world, report, &left, &pins)?;
+        errors(world, &top, &pins)?;
+        velocities(world, &bottom, &pins)?;
+        root.present()?;
+    }
     Ok(())
 }
 
-/// The square (centre x, centre y, side) that holds the robots' paths, the obstacles and
-/// the goal, with a metre around.
-fn site_extent(world: &World) -> (f64, f64, f64) {
+/// The box (low corner, high corner) that holds the robots' paths, the obstacles and the
+/// goal, with a metre around.
+fn site_extent(world: &World) -> ((f64, f64), (f64, f64)) {
     let mut lo = (f64::INFINITY, f64::INFINITY);
     let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
     let mut grow = |x: f64, y: f64| {
@@ -114,8 +136,18 @@ fn site_extent(world: &World) -> (f64, f64, f64) {
     if let Some(g) = world.station.guidance().planner().goal() {
         grow(g.x, g.y);
     }
-    let span = (hi.0 - lo.0).max(hi.1 - lo.1) + 2.0;
-    ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0, span)
+    ((lo.0 - 1.0, lo.1 - 1.0), (hi.0 + 1.0, hi.1 + 1.0))
+}
+
+/// `lo..hi` grown in x or in y so that a metre is as long either way on a plot of
+/// `pixels` (width, height).
+fn fitted(lo: (f64, f64), hi: (f64, f64), pixels: (u32, u32)) -> (Range<f64>, Range<f64>) {
+    let (w, h) = (hi.0 - lo.0, hi.1 - lo.1);
+    let (pw, ph) = (f64::from(pixels.0.max(1)), f64::from(pixels.1.max(1)));
+    let per_m = (pw / w).min(ph / h);
+    let (fw, fh) = (pw / per_m, ph / per_m);
+    let (cx, cy) = ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0);
+    (cx - fw / 2.0..cx + fw / 2.0, cy - fh / 2.0..cy + fh / 2.0)
 }
 
 /// The least clearance to an obstacle, or that none came near.
@@ -131,11 +163,12 @@ fn trajectories<DB: DrawingBackend>(
     world: &World,
     report: &Report,
     area: &DrawingArea<DB, plotters::coord::Shift>,
+    pins: &[pins::Pin],
 ) -> PlotResult
 where
     DB::ErrorType: 'static,
 {
-    let (cx, cy, span) = site_extent(world);
+    let (lo, hi) = site_extent(world);
     let title = format!(
         "{} ({}, seed {}): {}; {} collisions, {}",
         report.scenario,
@@ -159,19 +192,21 @@ where
                 .map_or("—".to_string(), |c| format!("{c:.2} m"))
         )
     });
+    let caption = if movers.is_some() { 50 } else { 25 };
     let area = area.titled(&title, ("sans-serif", 16))?;
     let mut builder = ChartBuilder::on(&area);
     if let Some(line) = movers {
         builder.caption(line, ("sans-serif", 14));
     }
+    // The plot's own pixels: the panel less its title, caption, margins and labels.
+    let (pw, ph) = area.dim_in_pixel();
+    let plot = (pw.saturating_sub(70), ph.saturating_sub(80 + caption));
+    let (xs, ys) = fitted(lo, hi, plot);
     let mut chart = builder
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(40)
-        .build_cartesian_2d(
-            cx - span / 2.0..cx + span / 2.0,
-            cy - span / 2.0..cy + span / 2.0,
-        )?;
+        .build_cartesian_2d(xs, ys)?;
     chart
         .configure_mesh()
         .x_desc("x (m)")
@@ -182,7 +217,9 @@ where
     draw_marks(&mut chart, world)?;
     draw_paths(&mut chart, world)?;
     draw_snapshots(&mut chart, world)?;
-    legend(&mut chart, SeriesLabelPosition::UpperLeft)
+    pins::on_map(&mut chart, world, pins)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    pins::list(&area, pins)
 }
 
 /// The obstacles, the goal and the planned route.
@@ -317,9 +354,11 @@ fn outline(m: &MoverState) -> Vec<(f64, f64)> {
     }
 }
 
-/// The movers (the truth): each one's way in grey, its footprint every 10 s, a red cross
-/// where one touched a robot; the station's moving tracks every 10 s in orange, with a line to
-/// where their velocity takes them in a second.
+/// The movers (the truth) while they were near the fleet (within [`NEAR_FLEET_M`] of a
+/// robot): their ways in grey, their footprints every 10 s, a red cross where one touched
+/// a robot; the station's moving tracks near the fleet every 10 s in orange, with a line
+/// to where their velocity takes them in a second. A plaza's crowd drawn whole buries the
+/// fleet.
 fn draw_movers<'a, DB: DrawingBackend + 'a>(
     chart: &mut TimeChart<'a, DB>,
     world: &World,
@@ -328,52 +367,12 @@ fn draw_movers<'a, DB: DrawingBackend + 'a>(
 where
     DB::ErrorType: 'static,
 {
-    let samples = &world.recorder.samples;
     if world.movers.is_empty() {
         return Ok(());
     }
-    let grey = RGBColor(120, 120, 120);
-    let orange = RGBColor(240, 140, 0);
-    for index in 0..world.movers.len() {
-        let way: Vec<(f64, f64)> = samples
-            .iter()
-            .filter_map(|s| s.movers.iter().find(|m| m.index == index))
-            .map(|m| (m.position.x, m.position.y))
-            .collect();
-        let series = chart.draw_series(LineSeries::new(way, grey.mix(0.35)))?;
-        if index == 0 {
-            series
-                .label("movers (truth): ways, footprints every 10 s")
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey));
-        }
-    }
-    let every = |period: f64| {
-        samples
-            .iter()
-            .filter(move |s| ((s.t * 10.0).round() as u64).is_multiple_of((period * 10.0) as u64))
-    };
-    for s in every(10.0) {
-        for m in &s.movers {
-            chart.draw_series(std::iter::once(Polygon::new(outline(m), grey.mix(0.25))))?;
-        }
-    }
-    let mut first = true;
-    for s in every(10.0) {
-        for t in s.tracks.iter().filter(|t| t.motion == Motion::Moving) {
-            let (p, q) = (t.position, t.at(1.0));
-            let series = chart.draw_series([
-                PathElement::new([(p.x, p.y), (q.x, q.y)], orange.stroke_width(2)),
-                PathElement::new(circle(p.x, p.y, t.radius.max(0.15)), orange.stroke_width(1)),
-            ])?;
-            if std::mem::take(&mut first) {
-                series
-                    .label("tracks (station): moving, velocity × 1 s, every 10 s")
-                    .legend(move |(x, y)| {
-                        PathElement::new([(x, y), (x + 16, y)], orange.stroke_width(2))
-                    });
-            }
-        }
-    }
+    draw_ways(chart, world)?;
+    draw_tracks(chart, world)?;
+    let samples = &world.recorder.samples;
     for c in &report.movers.contacts {
         let near = samples
             .iter()
@@ -390,7 +389,108 @@ where
     Ok(())
 }
 
-/// Formation snapshots every 10 s: the robots' footprints joined leader → followers.
+/// Near the fleet: within this of a robot, m.
+const NEAR_FLEET_M: f64 = 3.0;
+
+/// Whether `p` is within [`NEAR_FLEET_M`] of a robot of `s`.
+fn near_fleet(s: &crate::metrics::Sample, p: DVec2) -> bool {
+    s.robots
+        .iter()
+        .any(|r| p.distance(DVec2::new(r.x, r.y)) <= NEAR_FLEET_M)
+}
+
+/// The samples every `period` s.
+fn every(world: &World, period: f64) -> impl Iterator<Item = &crate::metrics::Sample> {
+    let step = (period * 10.0) as u64;
+    world
+        .recorder
+        .samples
+        .iter()
+        .filter(move |s| ((s.t * 10.0).round() as u64).is_multiple_of(step))
+}
+
+/// Each mover's way while near the fleet (in pieces), and its footprint every 10 s there.
+fn draw_ways<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let grey = RGBColor(90, 90, 90);
+    let mut pieces: Vec<Vec<Vec<(f64, f64)>>> = vec![vec![Vec::new()]; world.movers.len()];
+    for s in &world.recorder.samples {
+        for m in &s.movers {
+            let Some(way) = pieces.get_mut(m.index) else {
+                continue;
+            };
+            match (near_fleet(s, m.position), way.last_mut()) {
+                (true, Some(piece)) => piece.push((m.position.x, m.position.y)),
+                (false, Some(piece)) if !piece.is_empty() => way.push(Vec::new()),
+                _ => {}
+            }
+        }
+    }
+    let shown = pieces
+        .iter()
+        .filter(|w| w.iter().any(|p| p.len() > 1))
+        .count();
+    let label = format!(
+        "movers (truth) within {NEAR_FLEET_M:.0} m of the fleet ({shown} of {}): ways, footprints every 10 s",
+        world.movers.len()
+    );
+    let mut first = true;
+    for piece in pieces.into_iter().flatten().filter(|p| p.len() > 1) {
+        let series = chart.draw_series(LineSeries::new(piece, grey.mix(0.6)))?;
+        if std::mem::take(&mut first) {
+            series
+                .label(label.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey));
+        }
+    }
+    for s in every(world, 10.0) {
+        for m in s.movers.iter().filter(|m| near_fleet(s, m.position)) {
+            chart.draw_series(std::iter::once(Polygon::new(outline(m), grey.mix(0.5))))?;
+        }
+    }
+    Ok(())
+}
+
+/// The station's moving tracks near the fleet every 10 s.
+fn draw_tracks<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let orange = RGBColor(240, 140, 0);
+    let mut first = true;
+    for s in every(world, 10.0) {
+        let near = s
+            .tracks
+            .iter()
+            .filter(|t| t.motion == Motion::Moving && near_fleet(s, t.position));
+        for t in near {
+            let (p, q) = (t.position, t.at(1.0));
+            let series = chart.draw_series([
+                PathElement::new([(p.x, p.y), (q.x, q.y)], orange.stroke_width(2)),
+                PathElement::new(circle(p.x, p.y, t.radius.max(0.15)), orange.stroke_width(1)),
+            ])?;
+            if std::mem::take(&mut first) {
+                series
+                    .label("tracks (station) near the fleet: velocity × 1 s, every 10 s")
+                    .legend(move |(x, y)| {
+                        PathElement::new([(x, y), (x + 16, y)], orange.stroke_width(2))
+                    });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Formation snapshots every 10 s: the robots' footprints joined leader → followers, the
+/// time beside the leader.
 fn draw_snapshots<'a, DB: DrawingBackend + 'a>(
     chart: &mut TimeChart<'a, DB>,
     world: &World,
@@ -412,6 +512,10 @@ where
                     chart.draw_series(LineSeries::new([lp, (r.x, r.y)], BLACK.mix(0.3)))?;
                 }
             }
+            let style = ("sans-serif", 11).into_font().color(&BLACK.mix(0.7));
+            chart.draw_series(std::iter::once(
+                EmptyElement::at(lp) + Text::new(format!("{:.0} s", s.t), (6, 6), style),
+            ))?;
         }
         for (i, r) in s.robots.iter().enumerate() {
             let fp = world.robots[i].body.params.footprint;
@@ -424,6 +528,7 @@ where
 fn errors<DB: DrawingBackend>(
     world: &World,
     area: &DrawingArea<DB, plotters::coord::Shift>,
+    pins: &[pins::Pin],
 ) -> PlotResult
 where
     DB::ErrorType: 'static,
@@ -447,19 +552,27 @@ where
         .x_desc("t (s)")
         .y_desc("error (m)")
         .draw()?;
-    chart.draw_series(LineSeries::new([(0.0, 0.1), (t_end, 0.1)], BLACK.mix(0.4)))?;
+    chart
+        .draw_series(LineSeries::new([(0.0, 0.1), (t_end, 0.1)], BLACK.mix(0.4)))?
+        .label("0.1 m: the stable-phase bound")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.4)));
     // Shade transformations (blend strictly between the shapes).
-    chart.draw_series(
-        rec.samples
-            .iter()
-            .filter(|s| s.blend > 0.0 && s.blend < 1.0)
-            .map(|s| {
-                Rectangle::new(
-                    [(s.t - 0.05, 0.0), (s.t + 0.05, e_max * 1.05)],
-                    RGBColor(255, 220, 150).mix(0.5).filled(),
-                )
-            }),
-    )?;
+    let band = RGBColor(255, 220, 150).mix(0.5);
+    chart
+        .draw_series(
+            rec.samples
+                .iter()
+                .filter(|s| s.blend > 0.0 && s.blend < 1.0)
+                .map(|s| {
+                    Rectangle::new(
+                        [(s.t - 0.05, 0.0), (s.t + 0.05, e_max * 1.05)],
+                        band.filled(),
+                    )
+                }),
+        )?
+        .label("a shape change under way")
+        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], band.filled()));
+    pins::on_time(&mut chart, pins, 0.0..e_max * 1.05)?;
     for (i, robot) in world.robots.iter().enumerate() {
         if robot.role != Role::Follower {
             continue;
@@ -482,6 +595,7 @@ where
 fn velocities<DB: DrawingBackend>(
     world: &World,
     area: &DrawingArea<DB, plotters::coord::Shift>,
+    pins: &[pins::Pin],
 ) -> PlotResult
 where
     DB::ErrorType: 'static,
@@ -494,13 +608,23 @@ where
         -1.0..1.0,
     )?;
     chart.configure_mesh().x_desc("t (s)").draw()?;
-    for (i, _) in world.robots.iter().enumerate() {
-        chart.draw_series(LineSeries::new(
-            rec.samples
-                .iter()
-                .map(|s| (s.t, s.robots[i].v.clamp(-1.0, 1.0))),
-            color(i).stroke_width(2),
-        ))?;
+    pins::on_time(&mut chart, pins, -1.0..1.0)?;
+    for (i, robot) in world.robots.iter().enumerate() {
+        let who = match robot.role {
+            Role::Leader => format!("leader {}: v solid, ω dashed", robot.id),
+            Role::Follower => format!("follower {}", robot.id),
+        };
+        chart
+            .draw_series(LineSeries::new(
+                rec.samples
+                    .iter()
+                    .map(|s| (s.t, s.robots[i].v.clamp(-1.0, 1.0))),
+                color(i).stroke_width(2),
+            ))?
+            .label(who)
+            .legend(move |(x, y)| {
+                PathElement::new([(x, y), (x + 16, y)], color(i).stroke_width(2))
+            });
         chart.draw_series(DashedLineSeries::new(
             rec.samples
                 .iter()
@@ -510,5 +634,5 @@ where
             color(i).into(),
         ))?;
     }
-    Ok(())
+    legend(&mut chart, SeriesLabelPosition::LowerRight)
 }
