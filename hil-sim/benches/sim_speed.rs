@@ -28,7 +28,7 @@ fn paper_obstacles() -> Scenario {
 /// 20 m × 20 m the formation crosses.
 fn paper_with_pedestrians() -> Scenario {
     let mut s = paper_obstacles();
-    s.name = "paper-obstacles+20p".into();
+    s.name = "paper-obstacles-20p".into();
     s.crowds.push(CrowdSpec {
         area: BoundsSpec {
             min: [0.0, 0.0],

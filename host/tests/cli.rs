@@ -98,6 +98,11 @@ fn bad_files_name_file_line_and_field() {
             "negative.toml:9:54: field `map.obstacles[0].radius`: must be a finite number > 0",
         ),
         (
+            "path.toml",
+            GOOD.replacen("name = \"", "name = \"../", 1),
+            "field `name`: must be a plain file name",
+        ),
+        (
             "unknown.toml",
             GOOD.replace("k2 = 0.3", "k2 = 0.3\nkp = 3"),
             "field `follower.kp`: unknown field `kp`",

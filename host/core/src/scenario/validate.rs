@@ -112,6 +112,7 @@ impl Scenario {
             // Too large to check item by item: say so, and nothing else.
             return Err(p.0);
         }
+        self.check_name(&mut p);
         self.check_robot(&mut p);
         let map_ok = self.check_map(&mut p);
         let robots_ok = self.check_robots(&mut p, map_ok);
@@ -128,6 +129,21 @@ impl Scenario {
             Ok(())
         } else {
             Err(p.0)
+        }
+    }
+
+    /// The name is a plain file name: it names the report, figure and recording under
+    /// `out/`, and a path (`../x`, `/etc/x`) would write them elsewhere.
+    fn check_name(&self, p: &mut Problems) {
+        let n = &self.name;
+        let plain = |c: char| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.');
+        let ok = !n.is_empty() && n.len() <= 100 && !n.starts_with('.') && n.chars().all(plain);
+        if !ok {
+            p.fail(
+                "name",
+                "must be a plain file name of up to 100 letters, digits, '-', '_' or '.' \
+                 (not starting with '.'): it names the files written under out/",
+            );
         }
     }
 
