@@ -27,8 +27,9 @@ fn shifted(line: &str, dx: f64) -> String {
 /// follower 1 4.3 m off its slot and the goal was never reached. Here an attacker who
 /// hears every genuine record sends, for each, 20 datagrams of 10 forged fixes of
 /// follower 1, 2 m off (2,000 lines/s): unsealed, sealed with another site's key, the
-/// genuine record changed, and genuine records replayed a second late. The fleet goes on
-/// as without them; every forged datagram is counted by why it was refused.
+/// genuine record changed, and genuine records replayed a second late; and once a record
+/// sealed with the site's own key and the largest counter. The fleet goes on as without
+/// them; every forged datagram is counted by why it was refused.
 #[test]
 fn a_flood_of_forged_fixes_moves_no_robot() {
     let site = Site::new("fix-flood");
@@ -115,6 +116,13 @@ fn a_flood_of_forged_fixes_moves_no_robot() {
             sent
         })
     };
+    // A captured key: one record with no lines and the largest counter, which under a
+    // replay floor ended the feed for good (issue 52). It is refused as ahead of the
+    // station's clock, and the genuine feed goes on.
+    std::thread::sleep(Duration::from_secs(2));
+    let out = UdpSocket::bind("127.0.0.1:0").unwrap();
+    out.send_to(seal("fixes", "", u64::MAX - 1).as_bytes(), &feed)
+        .unwrap();
     run.finish(Duration::from_secs(90));
     robots.finish(Duration::from_secs(30));
     let replays = relayed.join().unwrap();
@@ -141,6 +149,7 @@ fn a_flood_of_forged_fixes_moves_no_robot() {
     );
     // Every forged datagram the station heard was refused (it stops listening a little
     // before the robots stop publishing: the last ones go unheard).
+    assert_eq!(counts["ahead"], 1, "{counts}");
     let heard = refused[0] + refused[1];
     assert!(heard <= forged && heard * 10 >= forged * 8, "{counts}");
     assert!(

@@ -17,9 +17,18 @@
 //! closes the record of the lines since the previous one.
 //!
 //! The base station opens a record only with the key of the source it expects on that
-//! input, refuses a counter not above the last one it took (a replay), and never lets an
-//! unsealed line through: a datagram from anyone else on the network is dropped and
-//! counted, not forwarded to a robot under the robot's own radio key.
+//! input, and never lets an unsealed line through: a datagram from anyone else on the
+//! network is dropped and counted, not forwarded to a robot under the robot's own radio
+//! key. **Replays** are refused by a window on the station's clock, not by a floor: a
+//! counter more than [`AHEAD_US`] ahead of the station's clock or more than [`BEHIND_US`]
+//! behind it is refused, and one within the window is taken once (the counters taken
+//! within it are kept). A floor (a counter not above the last taken is a replay) let one
+//! record sealed with a captured key and the counter 2⁶⁴−1 end a feed for good; a window
+//! lets such a record do nothing, and a keyed flood only take the window's room (its
+//! counters within [`AHEAD_US`], never more than [`SEEN_MAX`] of them held). Sources
+//! must keep their clocks within [`AHEAD_US`] of the station's (NTP, GNSS); a record
+//! captured and sent again later than [`BEHIND_US`] (an NMEA record of yesterday, at the
+//! same time of day) is refused as stale.
 
 use blake2::digest::{consts::U16, KeyInit, Mac};
 use blake2::Blake2sMac;
@@ -47,8 +56,13 @@ pub enum SealError {
     WrongSource,
     /// The tag does not verify: another key, or the lines were changed.
     BadTag,
-    /// A counter not above the last one taken: a recorded record sent again.
+    /// A counter taken before: a recorded record sent again.
     Replay,
+    /// A counter more than [`AHEAD_US`] ahead of the station's clock.
+    Ahead,
+    /// A counter more than [`BEHIND_US`] behind the station's clock (or under the lowest
+    /// one the window still holds): too old to tell from a replay.
+    Stale,
     /// More than [`MAX_RECORD`] bytes.
     TooLong,
 }
@@ -61,6 +75,8 @@ impl SealError {
             SealError::WrongSource => "wrong_source",
             SealError::BadTag => "bad_tag",
             SealError::Replay => "replay",
+            SealError::Ahead => "ahead_of_the_clock",
+            SealError::Stale => "stale",
             SealError::TooLong => "too_long",
         }
     }
@@ -73,7 +89,9 @@ impl std::fmt::Display for SealError {
             SealError::Malformed => "a seal line that does not parse",
             SealError::WrongSource => "sealed by another source than this input's",
             SealError::BadTag => "the seal does not verify (another key, or changed lines)",
-            SealError::Replay => "a counter already used: a replayed record",
+            SealError::Replay => "a counter already taken: a replayed record",
+            SealError::Ahead => "a counter over 2 s ahead of the station's clock",
+            SealError::Stale => "a counter over 10 s behind the station's clock",
             SealError::TooLong => "a record over 64 KiB",
         })
     }
@@ -166,16 +184,33 @@ impl Sealer {
     }
 }
 
-/// Opening one input's records: the source it expects, and the newest counter taken.
+/// A source's counter may run this far ahead of the station's clock: disciplined clocks
+/// agree within milliseconds, a relay's buffering adds a little, µs.
+pub const AHEAD_US: u64 = 2_000_000;
+/// A record this much older than the station's clock is refused: a datagram arrives in
+/// milliseconds, a stream's relay may hold a few seconds, µs.
+pub const BEHIND_US: u64 = 10_000_000;
+/// The most counters the window holds: a source sealing 100 records a second fills a
+/// tenth of it; a flood beyond it raises the window's floor, at most to [`AHEAD_US`].
+pub const SEEN_MAX: usize = 16_384;
+
+/// Opening one input's records: the source it expects, and the counters taken within
+/// the window.
 #[derive(Debug)]
 pub struct Opener {
     key: SourceKey,
-    last: Option<u64>,
+    seen: std::collections::BTreeSet<u64>,
+    /// Under this nothing is taken: the highest counter pushed out of a full window.
+    floor: u64,
 }
 
 impl Opener {
     pub fn new(key: SourceKey) -> Self {
-        Self { key, last: None }
+        Self {
+            key,
+            seen: std::collections::BTreeSet::new(),
+            floor: 0,
+        }
     }
 
     pub fn source(&self) -> &str {
@@ -183,8 +218,9 @@ impl Opener {
     }
 
     /// The lines of one record (a datagram, or a stream's lines up to and including a seal
-    /// line), if its seal verifies.
-    pub fn open<'a>(&mut self, record: &'a [u8]) -> Result<&'a [u8], SealError> {
+    /// line), if its seal verifies and its counter is in the window round `now_us` (the
+    /// station's clock, µs since 1970) and not taken before.
+    pub fn open<'a>(&mut self, record: &'a [u8], now_us: u64) -> Result<&'a [u8], SealError> {
         if record.len() > MAX_RECORD {
             return Err(SealError::TooLong);
         }
@@ -210,11 +246,30 @@ impl Opener {
             .mac(counter, lines)
             .verify_slice(&given)
             .map_err(|_| SealError::BadTag)?;
-        if self.last.is_some_and(|last| counter <= last) {
+        self.take(counter, now_us)?;
+        Ok(lines)
+    }
+
+    /// Takes `counter` into the window round `now_us`, or says why not.
+    fn take(&mut self, counter: u64, now_us: u64) -> Result<(), SealError> {
+        if counter > now_us.saturating_add(AHEAD_US) {
+            return Err(SealError::Ahead);
+        }
+        let oldest = now_us.saturating_sub(BEHIND_US);
+        if counter < oldest || counter <= self.floor {
+            return Err(SealError::Stale);
+        }
+        // What fell out of the window is refused by the clock check from now on.
+        self.seen = self.seen.split_off(&oldest);
+        if !self.seen.insert(counter) {
             return Err(SealError::Replay);
         }
-        self.last = Some(counter);
-        Ok(lines)
+        if self.seen.len() > SEEN_MAX {
+            if let Some(pushed) = self.seen.pop_first() {
+                self.floor = self.floor.max(pushed);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -255,6 +310,9 @@ impl StreamRecords {
 mod tests {
     use super::*;
 
+    /// The station's clock in these tests, µs since 1970.
+    const NOW: u64 = 1_764_486_000_000_000;
+
     fn master() -> MasterKey {
         MasterKey::from_bytes(&[3; 32])
     }
@@ -262,27 +320,30 @@ mod tests {
     #[test]
     fn a_sealed_record_opens_once_and_only_with_its_source_key() {
         let mut sealer = Sealer::new(SourceKey::derive(&master(), "fixes"));
-        let record = sealer.seal("1,1764486000.1,1.0,2.0,0.0,0.02\n", 5);
+        let record = sealer.seal("1,1764486000.1,1.0,2.0,0.0,0.02\n", NOW + 5);
         let mut opener = Opener::new(SourceKey::derive(&master(), "fixes"));
         assert_eq!(
-            opener.open(record.as_bytes()),
+            opener.open(record.as_bytes(), NOW),
             Ok(&b"1,1764486000.1,1.0,2.0,0.0,0.02\n"[..])
         );
-        assert_eq!(opener.open(record.as_bytes()), Err(SealError::Replay));
+        assert_eq!(opener.open(record.as_bytes(), NOW), Err(SealError::Replay));
         // Another site's key, another source's key, changed lines, no seal.
         let other = MasterKey::from_bytes(&[4; 32]);
         let mut foreign = Sealer::new(SourceKey::derive(&other, "fixes"));
-        let forged = foreign.seal("1,1764486000.2,9.0,2.0,0.0,0.02\n", 50);
-        assert_eq!(opener.open(forged.as_bytes()), Err(SealError::BadTag));
+        let forged = foreign.seal("1,1764486000.2,9.0,2.0,0.0,0.02\n", NOW + 50);
+        assert_eq!(opener.open(forged.as_bytes(), NOW), Err(SealError::BadTag));
         let mut scan = Sealer::new(SourceKey::derive(&master(), "scan"));
-        let wrong = scan.seal("1,1764486000.2,9.0,2.0,0.0,0.02\n", 60);
-        assert_eq!(opener.open(wrong.as_bytes()), Err(SealError::WrongSource));
-        let changed = sealer
-            .seal("1,1764486000.3,1.0,2.0,0.0,0.02\n", 70)
-            .replace("1.0,2.0", "1.4,2.0");
-        assert_eq!(opener.open(changed.as_bytes()), Err(SealError::BadTag));
+        let wrong = scan.seal("1,1764486000.2,9.0,2.0,0.0,0.02\n", NOW + 60);
         assert_eq!(
-            opener.open(b"1,1764486000.3,1.0,2.0,0.0,0.02\n"),
+            opener.open(wrong.as_bytes(), NOW),
+            Err(SealError::WrongSource)
+        );
+        let changed = sealer
+            .seal("1,1764486000.3,1.0,2.0,0.0,0.02\n", NOW + 70)
+            .replace("1.0,2.0", "1.4,2.0");
+        assert_eq!(opener.open(changed.as_bytes(), NOW), Err(SealError::BadTag));
+        assert_eq!(
+            opener.open(b"1,1764486000.3,1.0,2.0,0.0,0.02\n", NOW),
             Err(SealError::Unsealed)
         );
         for bad in [
@@ -291,30 +352,31 @@ mod tests {
             "#seal v1 fixes 9 zz\n",
         ] {
             assert_eq!(
-                opener.open(bad.as_bytes()),
+                opener.open(bad.as_bytes(), NOW),
                 Err(SealError::Malformed),
                 "{bad}"
             );
         }
         assert_eq!(
-            opener.open(&vec![b'a'; MAX_RECORD + 1]),
+            opener.open(&vec![b'a'; MAX_RECORD + 1], NOW),
             Err(SealError::TooLong)
         );
         // The genuine source goes on.
-        let next = sealer.seal("1,1764486000.4,1.0,2.0,0.0,0.02\n", 80);
-        assert!(opener.open(next.as_bytes()).is_ok());
+        let next = sealer.seal("1,1764486000.4,1.0,2.0,0.0,0.02\n", NOW + 80);
+        assert!(opener.open(next.as_bytes(), NOW).is_ok());
     }
 
     #[test]
     fn a_stream_is_cut_into_records_at_its_seal_lines() {
         let mut sealer = Sealer::new(SourceKey::derive(&master(), "nmea-2"));
-        let text = sealer.seal("$GPHDT,90.0,T*0C\n$GPGGA,a\n", 1) + &sealer.seal("$X\n", 2);
+        let text =
+            sealer.seal("$GPHDT,90.0,T*0C\n$GPGGA,a\n", NOW + 1) + &sealer.seal("$X\n", NOW + 2);
         let mut records = StreamRecords::default();
         let mut opener = Opener::new(SourceKey::derive(&master(), "nmea-2"));
         let mut opened = Vec::new();
         for line in text.split_inclusive('\n') {
             if let Some(record) = records.line(line.as_bytes()) {
-                opened.push(opener.open(&record.unwrap()).unwrap().to_vec());
+                opened.push(opener.open(&record.unwrap(), NOW).unwrap().to_vec());
             }
         }
         assert_eq!(
@@ -344,6 +406,41 @@ mod tests {
         );
         assert!(
             record.ends_with("#seal v1 fixes 1764486000125000 b5ed2b06aded3ce5ec782370117511f0\n")
+        );
+    }
+
+    /// One record sealed with a captured key and the largest counter ends nothing; a
+    /// keyed flood just ahead only takes the window's room; yesterday's record at the same
+    /// time of day is stale; a replay within the window is refused.
+    #[test]
+    fn the_window_cannot_be_pushed_out_of_a_genuine_sources_reach() {
+        let key = || SourceKey::derive(&master(), "scan");
+        let mut opener = Opener::new(key());
+        let mut attacker = Sealer::new(key());
+        let far = attacker.seal("9,9\n", u64::MAX - 1);
+        assert_eq!(opener.open(far.as_bytes(), NOW), Err(SealError::Ahead));
+        let genuine = |t: u64| key().seal("1,2\n", t);
+        for k in 0..10 {
+            let t = NOW + k * 100_000;
+            assert!(opener.open(genuine(t).as_bytes(), t).is_ok(), "{k}");
+        }
+        // A flood 1.9 s ahead, more than the window holds.
+        for k in 0..(SEEN_MAX as u64 + 100) {
+            let t = NOW + 1_900_000 + k;
+            let _ = opener.open(key().seal("9,9\n", t).as_bytes(), NOW + 1_000_000);
+        }
+        // Refused only while the genuine clock is under the flood's pushed-out counters:
+        // at most AHEAD_US.
+        let later = NOW + 1_000_000 + AHEAD_US + 1;
+        assert!(opener.open(genuine(later).as_bytes(), later).is_ok());
+        assert_eq!(
+            opener.open(genuine(later).as_bytes(), later),
+            Err(SealError::Replay)
+        );
+        let yesterday = genuine(later - 86_400_000_000);
+        assert_eq!(
+            opener.open(yesterday.as_bytes(), later),
+            Err(SealError::Stale)
         );
     }
 

@@ -7,9 +7,14 @@
 //! - **Pairing**: the console prints a pairing code (and a URL carrying it in its fragment,
 //!   which browsers never send to a server). A page that shows it gets a session cookie
 //!   (`HttpOnly; SameSite=Strict`): every API request must carry that cookie or, for a
-//!   script, the code itself in `X-Console-Token`. Wrong codes are rate-limited per
-//!   address. This holds on the loopback too: another user's process or page on this
-//!   machine cannot drive the robots.
+//!   script, the code itself in `X-Console-Token`. This holds on the loopback too:
+//!   another user's process or page on this machine cannot drive the robots.
+//! - **Wrong codes**: one budget for the console, whatever path a code comes by (the
+//!   pairing form or the header) and whatever address it comes from: after [`TRIES`]
+//!   wrong codes the code is replaced by a fresh one, printed on the station's terminal
+//!   and logged. A guesser never gets more than [`TRIES`] tries at one code (of 2⁴⁹), and
+//!   nobody is locked out: the operator's right code is never refused, and a paired page
+//!   stays paired; a flood of wrong codes only makes new pages pair with the newest code.
 //! - **Origin**: a state-changing request from a browser must come from the console's own
 //!   origin, and be JSON (`Content-Type: application/json`), which a cross-site form
 //!   cannot send without a preflight the console never grants.
@@ -17,7 +22,6 @@
 use std::collections::{HashMap, VecDeque};
 use std::net::{IpAddr, SocketAddr};
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
 
 use hyper::header::{HeaderMap, CONTENT_TYPE, COOKIE, HOST, ORIGIN};
 
@@ -25,9 +29,8 @@ use hyper::header::{HeaderMap, CONTENT_TYPE, COOKIE, HOST, ORIGIN};
 pub const COOKIE_NAME: &str = "sweeper_console";
 /// Sessions kept; the oldest is forgotten past this (its browser pairs again).
 const SESSIONS: usize = 64;
-/// Wrong pairing codes an address may try per window.
-const TRIES: u32 = 5;
-const TRY_WINDOW: Duration = Duration::from_secs(60);
+/// Wrong codes one pairing code takes before it is replaced: 20 tries at 2⁴⁹ codes.
+pub const TRIES: u32 = 20;
 /// The alphabet of pairing codes: no 0/o, 1/l/i to misread on a tablet.
 const ALPHABET: &[u8] = b"23456789abcdefghjkmnpqrstuvwxyz";
 
@@ -54,8 +57,8 @@ pub enum Refusal {
     ForeignOrigin,
     /// 415: not JSON.
     NotJson,
-    /// 429: too many wrong pairing codes from this address.
-    TooManyTries,
+    /// 401: a wrong code, the last one the code took: a new code is printed.
+    CodeReplaced,
 }
 
 impl Refusal {
@@ -65,7 +68,7 @@ impl Refusal {
             Refusal::NotPaired => 401,
             Refusal::ForeignOrigin => 403,
             Refusal::NotJson => 415,
-            Refusal::TooManyTries => 429,
+            Refusal::CodeReplaced => 401,
         }
     }
 
@@ -77,7 +80,9 @@ impl Refusal {
             }
             Refusal::ForeignOrigin => "a request from another site",
             Refusal::NotJson => "commands are JSON (Content-Type: application/json)",
-            Refusal::TooManyTries => "too many wrong pairing codes: wait a minute",
+            Refusal::CodeReplaced => {
+                "wrong pairing code: too many wrong codes came, so the station printed a new one"
+            }
         }
     }
 }
@@ -86,30 +91,70 @@ impl Refusal {
 pub struct Guard {
     /// Accepted `Host` values, lower case.
     hosts: Vec<String>,
-    code: String,
+    /// The pairing code, and the wrong codes it has taken.
+    code: Mutex<(String, u32)>,
     sessions: Mutex<VecDeque<String>>,
-    tries: Mutex<HashMap<IpAddr, (u32, Instant)>>,
+    /// Where the last wrong codes came from, for the log when the code is replaced.
+    wrong_from: Mutex<HashMap<IpAddr, u32>>,
+}
+
+/// A fresh pairing code: ten characters of [`ALPHABET`].
+fn fresh_code() -> anyhow::Result<String> {
+    Ok(random::<10>()?
+        .iter()
+        .map(|b| ALPHABET[*b as usize % ALPHABET.len()] as char)
+        .collect())
 }
 
 impl Guard {
     /// For a console bound to `bound` and reachable at `addresses` (the interfaces' when
     /// bound to every one).
     pub fn new(bound: SocketAddr, addresses: &[IpAddr]) -> anyhow::Result<Self> {
-        let code: String = random::<10>()?
-            .iter()
-            .map(|b| ALPHABET[*b as usize % ALPHABET.len()] as char)
-            .collect();
         Ok(Self {
             hosts: host_names(bound.port(), addresses),
-            code,
+            code: Mutex::new((fresh_code()?, 0)),
             sessions: Mutex::new(VecDeque::new()),
-            tries: Mutex::new(HashMap::new()),
+            wrong_from: Mutex::new(HashMap::new()),
         })
     }
 
     /// The pairing code, as printed: two groups of five.
     pub fn code(&self) -> String {
-        format!("{}-{}", &self.code[..5], &self.code[5..])
+        let code = self.code.lock().map(|c| c.0.clone()).unwrap_or_default();
+        format!("{}-{}", &code[..5], &code[5..])
+    }
+
+    /// Whether `given` (dashes and blanks aside, any case) is the code; a wrong one spends
+    /// the budget, and the last of it replaces the code (printed, logged).
+    fn check_code(&self, from: Option<IpAddr>, given: &[u8]) -> Result<(), Refusal> {
+        let given: Vec<u8> = given
+            .iter()
+            .filter(|b| **b != b'-' && !b.is_ascii_whitespace())
+            .map(u8::to_ascii_lowercase)
+            .collect();
+        let mut code = self.code.lock().map_err(|_| Refusal::NotPaired)?;
+        if same(&given, code.0.as_bytes()) {
+            return Ok(());
+        }
+        code.1 += 1;
+        if let (Some(ip), Ok(mut from)) = (from, self.wrong_from.lock()) {
+            if from.len() < 1024 || from.contains_key(&ip) {
+                *from.entry(ip).or_default() += 1;
+            }
+        }
+        if code.1 < TRIES {
+            return Err(Refusal::NotPaired);
+        }
+        *code = (fresh_code().map_err(|_| Refusal::NotPaired)?, 0);
+        let from: Vec<String> = self
+            .wrong_from
+            .lock()
+            .map(|mut f| f.drain().map(|(ip, n)| format!("{ip} ({n})")).collect())
+            .unwrap_or_default();
+        let printed = format!("{}-{}", &code.0[..5], &code.0[5..]);
+        tracing::warn!(from = %from.join(", "), "{TRIES} wrong pairing codes: a new code");
+        eprintln!("console: {TRIES} wrong pairing codes; the new pairing code is {printed}");
+        Err(Refusal::CodeReplaced)
     }
 
     /// Whether `Host` names this console.
@@ -150,12 +195,7 @@ impl Guard {
     /// Whether the request carries a session cookie or the pairing code.
     pub fn check_paired(&self, headers: &HeaderMap) -> Result<(), Refusal> {
         if let Some(token) = headers.get("x-console-token") {
-            let token = token.as_bytes();
-            let code: Vec<u8> = token.iter().copied().filter(|b| *b != b'-').collect();
-            if same(&code, self.code.as_bytes()) {
-                return Ok(());
-            }
-            return Err(Refusal::NotPaired);
+            return self.check_code(None, token.as_bytes());
         }
         let sessions = self.sessions.lock().map_err(|_| Refusal::NotPaired)?;
         let paired = headers
@@ -170,22 +210,7 @@ impl Guard {
 
     /// A pairing attempt from `from` with `code`: a new session's cookie value.
     pub fn pair(&self, from: IpAddr, code: &str) -> Result<String, Refusal> {
-        let mut tries = self.tries.lock().map_err(|_| Refusal::TooManyTries)?;
-        let now = Instant::now();
-        tries.retain(|_, (_, since)| now.duration_since(*since) < TRY_WINDOW);
-        let entry = tries.entry(from).or_insert((0, now));
-        if entry.0 >= TRIES {
-            return Err(Refusal::TooManyTries);
-        }
-        let given: Vec<u8> = code
-            .bytes()
-            .filter(|b| *b != b'-' && !b.is_ascii_whitespace())
-            .map(|b| b.to_ascii_lowercase())
-            .collect();
-        if !same(&given, self.code.as_bytes()) {
-            entry.0 += 1;
-            return Err(Refusal::NotPaired);
-        }
+        self.check_code(Some(from), code.as_bytes())?;
         let session = hex::encode(random::<16>().map_err(|_| Refusal::NotPaired)?);
         let mut sessions = self.sessions.lock().map_err(|_| Refusal::NotPaired)?;
         if sessions.len() >= SESSIONS {
@@ -310,11 +335,27 @@ mod tests {
             g.check_paired(&headers(&[("x-console-token", &g.code())])),
             Ok(())
         );
-        let attacker: IpAddr = "10.0.0.66".parse().unwrap();
-        for _ in 0..TRIES {
-            assert_eq!(g.pair(attacker, "aaaaa-aaaaa"), Err(Refusal::NotPaired));
+        // Wrong codes from many addresses and by the header spend one budget; its last
+        // replaces the code. Nobody is locked out: the new code pairs at once, from the
+        // address that sent wrong ones too, and the paired page stays paired.
+        let before = g.code();
+        for k in 0..TRIES - 1 {
+            let from: IpAddr = format!("127.0.0.{}", k + 2).parse().unwrap();
+            assert_eq!(g.pair(from, "aaaaa-aaaaa"), Err(Refusal::NotPaired));
         }
-        assert_eq!(g.pair(attacker, &g.code()), Err(Refusal::TooManyTries));
-        assert!(g.pair(me, &g.code()).is_ok(), "others still pair");
+        assert!(
+            g.pair(me, &before).is_ok(),
+            "the right code is never refused"
+        );
+        let wrong = [("x-console-token", "aaaaa-aaaaa")];
+        assert_eq!(g.check_paired(&headers(&wrong)), Err(Refusal::CodeReplaced));
+        assert_ne!(g.code(), before, "a new code");
+        assert_eq!(
+            g.check_paired(&headers(&[("x-console-token", &before)])),
+            Err(Refusal::NotPaired)
+        );
+        let attacker: IpAddr = "127.0.0.2".parse().unwrap();
+        assert!(g.pair(attacker, &g.code()).is_ok(), "no lock-out");
+        assert_eq!(g.check_paired(&headers(&[("cookie", &cookie)])), Ok(()));
     }
 }

@@ -54,6 +54,8 @@ pub struct GateCounts {
     unsealed: AtomicU64,
     bad_seal: AtomicU64,
     replayed: AtomicU64,
+    ahead: AtomicU64,
+    stale: AtomicU64,
 }
 
 /// [`GateCounts`] at one moment, for the run's report.
@@ -65,8 +67,12 @@ pub struct GateTally {
     pub unsealed: u64,
     /// Records whose seal does not verify, names another source, or does not parse.
     pub bad_seal: u64,
-    /// Records sealed before (a replay).
+    /// Records taken before (a replay within the window).
     pub replayed: u64,
+    /// Records whose counter runs more than 2 s ahead of the station's clock.
+    pub ahead: u64,
+    /// Records more than 10 s behind the station's clock.
+    pub stale: u64,
 }
 
 impl GateCounts {
@@ -77,6 +83,8 @@ impl GateCounts {
             unsealed: get(&self.unsealed),
             bad_seal: get(&self.bad_seal),
             replayed: get(&self.replayed),
+            ahead: get(&self.ahead),
+            stale: get(&self.stale),
         }
     }
 
@@ -84,6 +92,8 @@ impl GateCounts {
         let counter = match error {
             SealError::Unsealed => &self.unsealed,
             SealError::Replay => &self.replayed,
+            SealError::Ahead => &self.ahead,
+            SealError::Stale => &self.stale,
             SealError::Malformed
             | SealError::WrongSource
             | SealError::BadTag
@@ -129,7 +139,10 @@ impl Gate {
 
     /// The lines of one record, when its seal is its source's and fresh.
     fn open<'a>(&mut self, record: &'a [u8]) -> Option<&'a [u8]> {
-        match self.opener.open(record) {
+        let now_us = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros() as u64);
+        match self.opener.open(record, now_us) {
             Ok(lines) => Some(lines),
             Err(e) => {
                 self.counts.count(e);
@@ -234,12 +247,21 @@ mod tests {
         assert!(gate.allows("::ffff:10.1.0.7".parse().unwrap()));
         assert!(!gate.allows("10.1.1.7".parse().unwrap()));
         let mut sealer = Sealer::new(SourceKey::derive(&master, "fixes"));
-        let record = sealer.seal("a\nb\n", 1);
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_micros() as u64;
+        let record = sealer.seal("a\nb\n", now);
         assert_eq!(gate.open(record.as_bytes()), Some(&b"a\nb\n"[..]));
         assert_eq!(gate.open(record.as_bytes()), None);
         assert_eq!(gate.open(b"a\n"), None);
+        // One sealed with the largest counter is refused, and the source goes on.
+        assert_eq!(gate.open(sealer.seal("c\n", u64::MAX).as_bytes()), None);
+        let mut genuine = Sealer::new(SourceKey::derive(&master, "fixes"));
+        let next = genuine.seal("d\n", now + 1_000);
+        assert_eq!(gate.open(next.as_bytes()), Some(&b"d\n"[..]));
         let t = gate.counts.tally();
-        assert_eq!((t.replayed, t.unsealed, t.bad_seal), (1, 1, 0));
+        assert_eq!((t.replayed, t.unsealed, t.bad_seal, t.ahead), (1, 1, 0, 1));
         assert!("nonsense".parse::<AllowNet>().is_err());
         assert!("127.0.0.1".parse::<AllowNet>().is_ok());
     }

@@ -276,6 +276,8 @@ impl Localization {
                 unsealed = g.unsealed,
                 bad_seal = g.bad_seal,
                 replayed = g.replayed,
+                ahead = g.ahead,
+                stale = g.stale,
                 taken = c.fixes,
                 malformed = c.malformed,
                 no_solution = c.no_solution,
