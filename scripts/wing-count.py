@@ -1,3 +1,7 @@
+#!/usr/bin/env python3
+"""Counts the station's mover wing: named constants, ifs, boolean joins and lines of
+production code, before the rewrite (2ea5205) and today. Run from the repository root:
+`python3 scripts/wing-count.py` (docs/results.md#the-wing-counted)."""
 import re,subprocess,sys
 def prod(text):
     m=re.search(r'#\[cfg\(test\)\]\s*mod tests', text)

@@ -172,6 +172,20 @@ fn bad_files_name_file_line_and_field() {
     assert!(err.contains("no-such-file.toml: no such file"));
 }
 
+/// A bad command line exits 2, as README.md's table says, the flags `sim` checks itself
+/// included.
+#[test]
+fn a_bad_command_line_exits_2() {
+    let (code, _, err) = basestation(&["sim", "--console"], None);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--console and --live need --realtime"),
+        "{err}"
+    );
+    let (code, _, _) = basestation(&["sim", "--no-such-flag"], None);
+    assert_eq!(code, 2);
+}
+
 #[test]
 fn check_lists_every_problem_in_a_file() {
     let text = GOOD

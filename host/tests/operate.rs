@@ -419,7 +419,7 @@ fn nmea_over_tcp_is_read_and_forwarded() {
         let broken = seal(
             &format!("nmea-{id}"),
             "$GPGGA,this is not a sentence*00\r\n",
-            1,
+            unix_us(),
         );
         std::thread::spawn(move || {
             let (mut stream, _) = tcp.accept().unwrap();

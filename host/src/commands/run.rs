@@ -62,7 +62,9 @@ pub struct RunArgs {
     /// end, as JSON (docs/operating.md#6-the-run).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<std::path::PathBuf>,
-    /// Record the run as MCAP: radio bytes both ways, events, robots' reported poses.
+    /// Record the run as MCAP: radio bytes both ways, the station's events (at their
+    /// severity), the site map, the robots as reported, the route, the formation, the
+    /// station's tracks and sensed marks (docs/sim.md#the-recording).
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<std::path::PathBuf>,
     /// Write a Foxglove / Lichtblick layout for this fleet here (the shipped one with

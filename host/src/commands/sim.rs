@@ -84,7 +84,12 @@ fn parse_fault(text: &str) -> anyhow::Result<base_station::scenario::FaultSpec> 
 
 pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     if !args.realtime && (args.serve.console.is_some() || args.serve.live.is_some()) {
-        anyhow::bail!("--console and --live need --realtime (a run no faster than the wall clock)");
+        // A bad command line, as clap's own: exit code 2 (README.md#exit-codes).
+        clap::Error::raw(
+            clap::error::ErrorKind::MissingRequiredArgument,
+            "--console and --live need --realtime (a run no faster than the wall clock)\n",
+        )
+        .exit();
     }
     let (scenario, options) = prepare(&args)?;
     let name = scenario.name.clone();
