@@ -390,6 +390,21 @@ pub fn choose(
     last: Candidate,
     aside: &[DVec2],
 ) -> Choice {
+    let near: Vec<Mover> = movers
+        .iter()
+        .filter(|m| within_reach(fleet, m, c))
+        .copied()
+        .collect();
+    if near.is_empty() {
+        // Nobody can come into any term of the key: every candidate ranks by speed alone.
+        return Choice {
+            candidate: Candidate::Share(1.0),
+            key: Key::default(),
+            clears: false,
+            holds: Vec::new(),
+        };
+    }
+    let movers = &near[..];
     let horizon = movers
         .iter()
         .map(|m| m.trust_after_s)
@@ -453,6 +468,22 @@ fn holds(g: &[Gaps], movers: &[Mover]) -> Vec<usize> {
     out.sort_unstable();
     out.dedup();
     out
+}
+
+/// Whether `m` may come into any term of the key over the rollouts: within what it and
+/// the fastest robot may cover over the horizon, its grown disc, the footprint, the room
+/// it is owed and the hysteresis of a robot. Beyond it, it changes no candidate's key.
+fn within_reach(fleet: &model::Fleet, m: &Mover, c: &Context) -> bool {
+    let horizon = m.trust_after_s.max(c.horizon_s).max(IMMINENT_S);
+    let fastest = c.hurry.max(c.pace).max(c.reverse) + 0.5;
+    let room = m.owed.max(CLEAR_M).max(TOUCH_M) + RESUME_MARGIN_M;
+    let (_, disc) = m.disc(horizon);
+    let reach = (m.velocity().length() + fastest) * horizon + disc + c.footprint + room + 1.0;
+    let robots = std::iter::once(fleet.leader.pose.position)
+        .chain(fleet.followers.iter().map(|(r, _)| r.position()));
+    robots
+        .into_iter()
+        .any(|r| r.distance(m.track.position) <= reach)
 }
 
 /// Whether the leader keeps [`SITE_MARGIN_M`] from the site all along a rollout.
