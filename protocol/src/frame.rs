@@ -21,6 +21,17 @@ pub enum Address {
     Broadcast,
 }
 
+/// As an operator reads it: `base`, `robot 2`, `broadcast`.
+impl core::fmt::Display for Address {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Address::Base => f.write_str("base"),
+            Address::Robot(id) => write!(f, "robot {id}"),
+            Address::Broadcast => f.write_str("broadcast"),
+        }
+    }
+}
+
 /// The envelope in front of every payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -432,7 +432,7 @@ fn log_link(station: &BaseStation, now_ms: u32, per_robot: bool) {
         accepted = stats.accepted,
         rejected = stats.rejects.total(),
         lost = stats.lost,
-        planner = ?station.guidance().planner().mode(),
+        planner = station.guidance().planner().mode().name(),
         "link"
     );
     if !per_robot {
@@ -450,7 +450,7 @@ fn log_link(station: &BaseStation, now_ms: u32, per_robot: bool) {
             .map(|r| format!("{}={}", r.name(), peer.rejects.get(*r)))
             .collect();
         tracing::info!(
-            robot = ?peer.address,
+            robot = %peer.address,
             linked = peer.is_linked(),
             seen = %seen,
             accepted = peer.accepted,

@@ -153,6 +153,19 @@ pub enum Mode {
     Arrived,
 }
 
+impl Mode {
+    /// As an operator reads it in a log line.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Mode::Field => "field",
+            Mode::Escape { .. } => "escaping a dead end",
+            Mode::Route => "route",
+            Mode::NoRoute => "no route",
+            Mode::Arrived => "arrived",
+        }
+    }
+}
+
 /// What happened in the planner, as it tells the station: each kind at most once a step.
 #[derive(Debug, Clone, PartialEq)]
 pub enum PlannerEvent {

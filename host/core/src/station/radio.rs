@@ -25,7 +25,7 @@ impl BaseStation {
         let mut buf = [0u8; MAX_WIRE];
         match self.link.send(to, now_ms, message, &mut buf) {
             Ok(n) => self.outbox.extend_from_slice(&buf[..n]),
-            Err(e) => tracing::warn!(?to, "cannot send {}: {e}", message.name()),
+            Err(e) => tracing::warn!(%to, "cannot send {}: {e}", message.name()),
         }
     }
 
