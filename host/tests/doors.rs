@@ -156,6 +156,9 @@ fn a_flood_of_forged_fixes_moves_no_robot() {
         events(&run).iter().all(|e| e.1 != "localization_lost"),
         "{run}"
     );
+    // The flood is told as a station event (issue 52), not only counted.
+    let told = format!("feed_refused:feed udp:{feed}");
+    assert!(events(&run).iter().any(|e| e.1 == told), "{run}");
     let timing: &Value = &run["loop"];
     println!("control loop under the flood: {timing}");
     assert!(timing["late_p99_ms"].as_f64().unwrap() < 20.0, "{timing}");

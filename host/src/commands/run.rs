@@ -125,6 +125,7 @@ struct Live {
     next: Instant,
     buf: Vec<u8>,
     last_report: u32,
+    refusals: crate::live::feeds::gate::Bulk,
     timing: crate::live::timing::LoopTiming,
     diagnosis: crate::live::diagnosis::Diagnosis,
 }
@@ -185,6 +186,7 @@ impl Live {
             next: start,
             buf: vec![0u8; 2048],
             last_report: 0,
+            refusals: Default::default(),
             timing: crate::live::timing::LoopTiming::default(),
             diagnosis: crate::live::diagnosis::Diagnosis::default(),
         })
@@ -269,6 +271,7 @@ impl Live {
         }
         self.last_report = now_ms / 1000;
         self.diagnosis.look(&self.station, ids, now_ms);
+        self.tell_refusals(now_ms);
         if self.last_report.is_multiple_of(5) {
             if let Some(p) = self.station.progress(now_ms) {
                 tracing::info!("{}", super::sim::progress_words(&p));
@@ -276,6 +279,22 @@ impl Live {
             log_link(&self.station, now_ms, self.last_report.is_multiple_of(15));
             if let Some(l) = &self.localization {
                 l.log();
+            }
+        }
+    }
+
+    /// Each feed that refused records in bulk in the last second, as a station event.
+    fn tell_refusals(&mut self, now_ms: u32) {
+        let mut totals: Vec<(String, u64)> = Vec::new();
+        if let Some(l) = &self.localization {
+            totals.extend(l.counts().into_iter().map(|(n, r)| (n, r.gate.refused())));
+        }
+        if let Some(s) = &self.scans {
+            totals.push(("scan feed".to_string(), s.counts().gate.refused()));
+        }
+        for (input, total) in totals {
+            if let Some(n) = self.refusals.check(&input, total, now_ms) {
+                self.station.feed_refused(&input, n, now_ms);
             }
         }
     }

@@ -105,6 +105,13 @@ pub enum StationEvent {
     PaceResumed {
         at_ms: u32,
     },
+    /// A feed (localization or scans) refused records in bulk: `refused` in the last
+    /// second (unsealed, another key, replayed, off the clock, from outside the site).
+    FeedRefused {
+        input: String,
+        refused: u64,
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -148,6 +155,7 @@ impl StationEvent {
             E::ClearingWay { at_ms } => (*at_ms, "clearing_way".into(), Some(leader)),
             E::PaceResumed { at_ms } => (*at_ms, "pace_resumed".into(), Some(leader)),
             E::SteppingAside { at_ms } => (*at_ms, "stepping_aside".into(), Some(leader)),
+            E::FeedRefused { input, at_ms, .. } => (*at_ms, format!("feed_refused:{input}"), None),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }
@@ -191,7 +199,9 @@ impl Severity {
         match event {
             _ if halts => Severity::Error,
             "leader_lost" | "no_route" | "operator_emergency_stop" => Severity::Error,
-            _ if event.starts_with("robot_fault:") => Severity::Warning,
+            _ if event.starts_with("robot_fault:") || event.starts_with("feed_refused:") => {
+                Severity::Warning
+            }
             "localization_lost" | "follower_behind" | "operator_stop" | "local_minimum_escape" => {
                 Severity::Warning
             }

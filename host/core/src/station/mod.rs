@@ -312,6 +312,17 @@ impl BaseStation {
         &self.cfg
     }
 
+    /// A site feed refused `refused` records in the last second (`input`: its name): an
+    /// event, so that the console and the recording show it beside the run's others.
+    pub fn feed_refused(&mut self, input: &str, refused: u64, now_ms: u32) {
+        tracing::warn!(input, refused, "a feed refuses records in bulk");
+        self.events.push(StationEvent::FeedRefused {
+            input: input.to_string(),
+            refused,
+            at_ms: now_ms,
+        });
+    }
+
     /// The slot a follower holds now (its index among the formation's slots).
     pub fn slot_of(&self, robot: u16) -> Option<usize> {
         self.fleet.followers.iter().position(|id| *id == robot)

@@ -75,6 +75,43 @@ pub struct GateTally {
     pub stale: u64,
 }
 
+impl GateTally {
+    /// Everything the gate refused.
+    pub fn refused(&self) -> u64 {
+        self.not_allowed + self.unsealed + self.bad_seal + self.replayed + self.ahead + self.stale
+    }
+}
+
+/// This many refused in a second is an attack or a broken source, not a stray datagram.
+pub const BULK_PER_S: u64 = 50;
+/// One event per input at most this often: a flood is one story, not one a second, ms.
+const BULK_EVENT_EVERY_MS: u32 = 10_000;
+
+/// Which inputs refuse records in bulk: checked once a second with each input's total.
+#[derive(Debug, Default)]
+pub struct Bulk {
+    last: std::collections::HashMap<String, u64>,
+    said_ms: std::collections::HashMap<String, u32>,
+}
+
+impl Bulk {
+    /// How many `input` refused since the last check, when it is a bulk to tell (at least
+    /// [`BULK_PER_S`], and not told in the last [`BULK_EVENT_EVERY_MS`]).
+    pub fn check(&mut self, input: &str, total: u64, now_ms: u32) -> Option<u64> {
+        let before = self.last.insert(input.to_string(), total).unwrap_or(0);
+        let new = total.saturating_sub(before);
+        let recently = self
+            .said_ms
+            .get(input)
+            .is_some_and(|t| now_ms.wrapping_sub(*t) < BULK_EVENT_EVERY_MS);
+        if new < BULK_PER_S || recently {
+            return None;
+        }
+        self.said_ms.insert(input.to_string(), now_ms);
+        Some(new)
+    }
+}
+
 impl GateCounts {
     pub fn tally(&self) -> GateTally {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
@@ -263,6 +300,12 @@ mod tests {
         let t = gate.counts.tally();
         assert_eq!((t.replayed, t.unsealed, t.bad_seal, t.ahead), (1, 1, 0, 1));
         assert!("nonsense".parse::<AllowNet>().is_err());
+        // Refusals in bulk are told once, then again only after a while.
+        let mut bulk = Bulk::default();
+        assert_eq!(bulk.check("feed", 10, 1_000), None);
+        assert_eq!(bulk.check("feed", 500, 2_000), Some(490));
+        assert_eq!(bulk.check("feed", 1_000, 3_000), None, "told 1 s ago");
+        assert_eq!(bulk.check("feed", 2_000, 13_000), Some(1_000));
         assert!("127.0.0.1".parse::<AllowNet>().is_ok());
     }
 }
