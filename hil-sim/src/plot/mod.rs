@@ -372,11 +372,8 @@ where
     }
     draw_ways(chart, world)?;
     draw_tracks(chart, world)?;
-    let samples = &world.recorder.samples;
     for c in &report.movers.contacts {
-        let near = samples
-            .iter()
-            .min_by(|a, b| (a.t - c.at_s).abs().total_cmp(&(b.t - c.at_s).abs()));
+        let near = sample_at(world, c.at_s);
         let Some(m) = near.and_then(|s| s.movers.iter().find(|m| m.index == c.mover)) else {
             continue;
         };
@@ -397,6 +394,15 @@ fn near_fleet(s: &crate::metrics::Sample, p: DVec2) -> bool {
     s.robots
         .iter()
         .any(|r| p.distance(DVec2::new(r.x, r.y)) <= NEAR_FLEET_M)
+}
+
+/// The sample nearest the time `t_s`.
+fn sample_at(world: &World, t_s: f64) -> Option<&crate::metrics::Sample> {
+    world
+        .recorder
+        .samples
+        .iter()
+        .min_by(|a, b| (a.t - t_s).abs().total_cmp(&(b.t - t_s).abs()))
 }
 
 /// The samples every `period` s.
@@ -499,12 +505,7 @@ where
     DB::ErrorType: 'static,
 {
     let leader = world.robots.iter().position(|r| r.role == Role::Leader);
-    for s in world
-        .recorder
-        .samples
-        .iter()
-        .filter(|s| ((s.t * 10.0).round() as u64).is_multiple_of(100))
-    {
+    for s in every(world, 10.0) {
         if let Some(l) = leader {
             let lp = (s.robots[l].x, s.robots[l].y);
             for (i, r) in s.robots.iter().enumerate() {

@@ -114,7 +114,6 @@ pub fn on_map<'a, DB: DrawingBackend + 'a>(
 where
     DB::ErrorType: 'static,
 {
-    let samples = &world.recorder.samples;
     let Some(leader) = world
         .robots
         .iter()
@@ -123,10 +122,7 @@ where
         return Ok(());
     };
     for pin in pins {
-        let near = samples
-            .iter()
-            .min_by(|a, b| (a.t - pin.at_s).abs().total_cmp(&(b.t - pin.at_s).abs()));
-        if let Some(s) = near {
+        if let Some(s) = super::sample_at(world, pin.at_s) {
             let r = &s.robots[leader];
             badge(chart, (r.x, r.y), pin)?;
         }

@@ -219,11 +219,34 @@ impl Severity {
     }
 }
 
-/// Fault flags the station reports, with their names and whether they halt the fleet.
-pub(super) const REPORTED_FAULTS: [(u16, &str, bool); 3] = [
-    (faults::WHEEL_STALL_LEFT, "wheel_stall_left", true),
-    (faults::WHEEL_STALL_RIGHT, "wheel_stall_right", true),
-    (faults::POSE_FIX_REJECTED, "pose_fix_rejected", false),
+/// Every fault flag a robot reports (`protocol::messages::faults`), by its name in
+/// events, reports and the console.
+pub const FAULT_NAMES: [(u16, &str); 10] = [
+    (faults::LEADER_STATE_STALE, "leader_state_stale"),
+    (faults::COMMAND_STALE, "command_stale"),
+    (faults::NON_FINITE_INPUT, "non_finite_input"),
+    (faults::WHEEL_STALL_LEFT, "wheel_stall_left"),
+    (faults::WHEEL_STALL_RIGHT, "wheel_stall_right"),
+    (faults::POSE_FIX_STALE, "pose_fix_stale"),
+    (faults::POSE_FIX_REJECTED, "pose_fix_rejected"),
+    (faults::EMERGENCY_STOP, "emergency_stop"),
+    (faults::NOT_LINKED, "not_linked"),
+    (faults::NOT_LOCALIZED, "not_localized"),
+];
+
+/// A fault flag's name (`?` for a bit [`FAULT_NAMES`] does not hold).
+pub fn fault_name(bit: u16) -> &'static str {
+    FAULT_NAMES
+        .iter()
+        .find(|(b, _)| *b == bit)
+        .map_or("?", |(_, name)| name)
+}
+
+/// Fault flags the station reports as events, and whether they halt the fleet.
+pub(super) const REPORTED_FAULTS: [(u16, bool); 3] = [
+    (faults::WHEEL_STALL_LEFT, true),
+    (faults::WHEEL_STALL_RIGHT, true),
+    (faults::POSE_FIX_REJECTED, false),
 ];
 
 #[cfg(test)]

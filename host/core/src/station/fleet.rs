@@ -8,7 +8,7 @@ use glam::DVec2;
 use protocol::messages::{faults, RobotMode, Telemetry};
 use protocol::units;
 
-use super::events::{StationEvent, REPORTED_FAULTS};
+use super::events::{fault_name, StationEvent, REPORTED_FAULTS};
 use super::robots::spacing::Body;
 use crate::formation::{FollowerStatus, LeaderMotion};
 use crate::planner::PlanPose;
@@ -174,8 +174,9 @@ impl Fleet {
             return heard;
         };
         let before = status.telemetry.map_or(0, |p| p.faults);
-        for (bit, fault, halts) in REPORTED_FAULTS {
+        for (bit, halts) in REPORTED_FAULTS {
             if t.faults & bit != 0 && before & bit == 0 {
+                let fault = fault_name(bit);
                 // A halting fault stops the mission: an error; the rest a warning.
                 if halts {
                     tracing::error!(robot = id, fault, "robot fault: the fleet stops");

@@ -43,7 +43,7 @@ use protocol::link::{Link, Timing};
 use protocol::messages::Stop;
 use protocol::{Address, FrameDecoder, MasterKey, RejectCounts};
 
-pub use events::{Severity, StationEvent};
+pub use events::{Severity, StationEvent, FAULT_NAMES};
 use fixes::watch::FixWatch;
 pub use fixes::watch::{FixChange, FixLimits};
 pub use fixes::NotForwarded;

@@ -325,25 +325,13 @@ fn faults_of(station: &BaseStation, robot: u16, flags: u16) -> Vec<&'static str>
     names
 }
 
-/// The fault flags a robot reports, by name (`protocol::messages::faults`).
+/// The fault flags a robot reports, by name.
 fn fault_names(flags: u16) -> Vec<&'static str> {
-    use protocol::messages::faults as f;
-    [
-        (f::LEADER_STATE_STALE, "leader_state_stale"),
-        (f::COMMAND_STALE, "command_stale"),
-        (f::NON_FINITE_INPUT, "non_finite_input"),
-        (f::WHEEL_STALL_LEFT, "wheel_stall_left"),
-        (f::WHEEL_STALL_RIGHT, "wheel_stall_right"),
-        (f::POSE_FIX_STALE, "pose_fix_stale"),
-        (f::POSE_FIX_REJECTED, "pose_fix_rejected"),
-        (f::EMERGENCY_STOP, "emergency_stop"),
-        (f::NOT_LINKED, "not_linked"),
-        (f::NOT_LOCALIZED, "not_localized"),
-    ]
-    .into_iter()
-    .filter(|(bit, _)| flags & bit != 0)
-    .map(|(_, name)| name)
-    .collect()
+    base_station::station::FAULT_NAMES
+        .iter()
+        .filter(|(bit, _)| flags & bit != 0)
+        .map(|(_, name)| *name)
+        .collect()
 }
 
 /// What the station believes moves or stands on the site: each track's place, velocity,
