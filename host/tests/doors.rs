@@ -396,3 +396,183 @@ fn forged_scans_neither_stop_nor_blind_the_station() {
     let replans = events(&run).iter().filter(|e| e.1 == "replanned").count();
     assert!(replans > 0, "never planned round the van");
 }
+
+/// A TCP connection to `to` from the loopback address `source` (any of 127.0.0.0/8).
+fn connect_from(
+    source: std::net::Ipv4Addr,
+    to: std::net::SocketAddrV4,
+) -> Option<std::net::TcpStream> {
+    use nix::sys::socket::{bind, connect, socket, AddressFamily, SockFlag, SockType, SockaddrIn};
+    use std::os::fd::AsRawFd;
+    let fd = socket(
+        AddressFamily::Inet,
+        SockType::Stream,
+        SockFlag::empty(),
+        None,
+    )
+    .ok()?;
+    bind(
+        fd.as_raw_fd(),
+        &SockaddrIn::from(std::net::SocketAddrV4::new(source, 0)),
+    )
+    .ok()?;
+    connect(fd.as_raw_fd(), &SockaddrIn::from(to)).ok()?;
+    Some(std::net::TcpStream::from(fd))
+}
+
+/// One request on `stream`, kept open: the status and how long the answer took.
+fn on_connection(stream: &mut std::net::TcpStream, request: &str) -> (u16, Duration) {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let start = std::time::Instant::now();
+    if stream.write_all(request.as_bytes()).is_err() {
+        return (0, start.elapsed());
+    }
+    let mut reader = BufReader::new(&mut *stream);
+    let (mut status, mut length) = (0, 0usize);
+    loop {
+        let mut line = String::new();
+        if reader.read_line(&mut line).unwrap_or(0) == 0 {
+            return (0, start.elapsed());
+        }
+        let lower = line.to_ascii_lowercase();
+        if let Some(code) = lower.strip_prefix("http/1.1 ") {
+            status = code[..3].parse().unwrap_or(0);
+        } else if let Some(n) = lower.strip_prefix("content-length:") {
+            length = n.trim().parse().unwrap_or(0);
+        } else if line == "\r\n" {
+            break;
+        }
+    }
+    let mut body = vec![0u8; length];
+    let _ = reader.read_exact(&mut body);
+    (status, start.elapsed())
+}
+
+/// The console's session cookie for the pairing code `code`.
+fn paired_cookie(host: &str, code: &str) -> String {
+    use std::io::{Read, Write};
+    let body = format!("{{\"code\":\"{code}\"}}");
+    let mut s = std::net::TcpStream::connect(host).unwrap();
+    write!(
+        s,
+        "POST /api/pair HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n\
+         Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
+    let mut answer = String::new();
+    let _ = s.read_to_string(&mut answer);
+    answer
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("set-cookie: ")
+                .or(l.strip_prefix("Set-Cookie: "))
+        })
+        .and_then(|c| c.split(';').next())
+        .map(str::to_string)
+        .unwrap_or_else(|| panic!("not paired: {answer}"))
+}
+
+/// Issue 52, finding 5: connections churned from ever-new loopback sources reset 3 of 38
+/// of the operator's requests, one took 1.2 s. Here four threads open connections from
+/// rotating 127.x.y.z sources as fast as they can, each holding its newest 300, while the
+/// paired operator polls the state as the page does (40 times, on its kept-alive
+/// connection), then sends the emergency stop on it, then asks 40 times more, each on a
+/// fresh connection (as a browser does when its connection closed): every answer comes,
+/// the page's polls within 500 ms (it polls every 250 ms), the stop within 100 ms.
+#[test]
+fn the_operator_is_served_under_connection_churn() {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::sync::Arc;
+    let site = Site::new("console-churn");
+    let scenario = site.path("short-passage.toml");
+    let scenario = scenario.to_str().unwrap();
+    let (mut robots, _report, _trace) = robots_over_udp(&site, scenario, &[]);
+    let at = robots.address();
+    let mut run = run_over_udp(&site, scenario, &at, &["--console", "127.0.0.1:0"]);
+    let url = run.console_url();
+    let (host, code) = url
+        .strip_prefix("http://")
+        .and_then(|u| u.split_once("/#pair="))
+        .map(|(h, c)| (h.to_string(), c.to_string()))
+        .unwrap();
+    let cookie = paired_cookie(&host, &code);
+    let target: std::net::SocketAddrV4 = host.parse().unwrap();
+    let mut page = std::net::TcpStream::connect(&host).unwrap();
+    page.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    // The page's connection, as a browser opens it: with a request.
+    let state = format!("GET /api/state HTTP/1.1\r\nHost: {host}\r\nCookie: {cookie}\r\n\r\n");
+    assert_eq!(on_connection(&mut page, &state).0, 200);
+    let (stop, opened) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicU64::new(0)),
+    );
+    let churn: Vec<_> = (0..4u8)
+        .map(|k| {
+            let (stop, opened) = (stop.clone(), opened.clone());
+            std::thread::spawn(move || {
+                let mut held = std::collections::VecDeque::new();
+                let mut n = 0u32;
+                while !stop.load(Ordering::Relaxed) {
+                    n = n.wrapping_add(1);
+                    let [_, b, c, d] = (n % 4_000_000 + 2).to_be_bytes();
+                    let source = std::net::Ipv4Addr::new(127, b.max(1) ^ k, c, d.max(1));
+                    if let Some(s) = connect_from(source, target) {
+                        held.push_back(s);
+                        opened.fetch_add(1, Ordering::Relaxed);
+                    }
+                    if held.len() > 300 {
+                        held.pop_front();
+                    }
+                }
+            })
+        })
+        .collect();
+
+    let body = "{\"command\":\"emergency_stop\"}";
+    let estop = format!(
+        "POST /api/command HTTP/1.1\r\nHost: {host}\r\nCookie: {cookie}\r\n\
+         Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    let mut kept = Vec::new();
+    for _ in 0..40 {
+        kept.push(on_connection(&mut page, &state));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let (status, took) = on_connection(&mut page, &estop);
+    let mut fresh = Vec::new();
+    for _ in 0..40 {
+        let close = state.replace("\r\n\r\n", "\r\nConnection: close\r\n\r\n");
+        fresh.push(http_status(&host, &close));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let churned = opened.load(Ordering::Relaxed);
+    stop.store(true, Ordering::Relaxed);
+    for c in churn {
+        let _ = c.join();
+    }
+    let tally = |answers: &[(u16, Duration)]| {
+        let failed = answers.iter().filter(|(s, _)| *s != 200).count();
+        (failed, answers.iter().map(|a| a.1).max().unwrap())
+    };
+    let ((kept_failed, kept_slowest), (fresh_failed, fresh_slowest)) =
+        (tally(&kept), tally(&fresh));
+    println!(
+        "under churn ({churned} connections): kept-alive {kept_failed} of 40 failed, slowest \
+         {kept_slowest:?}; emergency stop {status} in {took:?}; fresh connections \
+         {fresh_failed} of 40 failed, slowest {fresh_slowest:?}"
+    );
+    assert_eq!((kept_failed, status), (0, 200), "{kept:?}");
+    assert!(kept_slowest < Duration::from_millis(500), "{kept:?}");
+    assert!(took < Duration::from_millis(100), "{took:?}");
+    assert_eq!(fresh_failed, 0, "{fresh:?}");
+    let resume = estop.replace("emergency_stop", "resume").replace(
+        &format!("{}\r\n\r\n", body.len()),
+        &format!("{}\r\nConnection: close\r\n\r\n", body.len() - 8),
+    );
+    assert_eq!(http_status(&host, &resume).0, 200, "{resume}");
+    run.finish(Duration::from_secs(120));
+    robots.finish(Duration::from_secs(30));
+}

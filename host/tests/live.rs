@@ -49,8 +49,8 @@ fn a_foxglove_client_receives_the_robots_poses_live() {
     std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
     let _sim = Killed(sim);
 
-    let request = |origin: Option<&str>| {
-        let mut request = url.as_str().into_client_request().unwrap();
+    let request_to = |url: &str, origin: Option<&str>| {
+        let mut request = url.into_client_request().unwrap();
         let headers = request.headers_mut();
         headers.insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
         if let Some(o) = origin {
@@ -58,6 +58,7 @@ fn a_foxglove_client_receives_the_robots_poses_live() {
         }
         request
     };
+    let request = |origin: Option<&str>| request_to(&url, origin);
     // Issue 27, finding 4: a page of any other site cannot open the stream in a visitor's
     // browser (nor a name rebound to the station); Foxglove's web app can.
     match tungstenite::connect(request(Some("http://evil.example"))) {
@@ -65,6 +66,37 @@ fn a_foxglove_client_receives_the_robots_poses_live() {
         other => panic!("another origin opened the stream: {:?}", other.map(|_| ())),
     }
     assert!(tungstenite::connect(request(Some("https://app.foxglove.dev"))).is_ok());
+    // Issue 52, finding 4: the stream is served by the station itself, on this address
+    // only, and wants the run's token: a local process without it reads nothing.
+    let (base, token) = url.split_once("?token=").expect("the URL carries a token");
+    for wrong in [base.to_string(), format!("{base}?token=0{}", &token[1..])] {
+        match tungstenite::connect(request_to(&wrong, None)) {
+            Err(tungstenite::Error::Http(response)) => assert_eq!(response.status(), 401),
+            other => panic!("{wrong} opened the stream: {:?}", other.map(|_| ())),
+        }
+    }
+    // Idle connections that never pass the door give way; the operator's viewer gets in.
+    let addr = base
+        .trim_start_matches("ws://")
+        .trim_end_matches('/')
+        .to_string();
+    let idle: Vec<std::net::TcpStream> = (0..200)
+        .filter_map(|_| std::net::TcpStream::connect(&addr).ok())
+        .collect();
+    assert!(idle.len() > 150, "{} idle connections", idle.len());
+    let viewers: Vec<_> = (0..32)
+        .map(|i| {
+            tungstenite::connect(request(None))
+                .unwrap_or_else(|e| panic!("viewer {i} beside 200 idle connections: {e}"))
+        })
+        .collect();
+    // The viewers' places are not taken from them: the 33rd token holder waits.
+    match tungstenite::connect(request(None)) {
+        Err(tungstenite::Error::Http(response)) => assert_eq!(response.status(), 503),
+        other => panic!("a 33rd viewer: {:?}", other.map(|_| ())),
+    }
+    drop((idle, viewers));
+    std::thread::sleep(Duration::from_millis(200));
     let (mut socket, _) = tungstenite::connect(request(None)).unwrap();
     let start = Instant::now();
     let mut pose_channel = None;

@@ -208,6 +208,12 @@ impl Guard {
         paired.then_some(()).ok_or(Refusal::NotPaired)
     }
 
+    /// Whether the request carries a live session's cookie (a code is not looked at: only a
+    /// request that is answered may spend the code's budget).
+    pub fn knows(&self, headers: &HeaderMap) -> bool {
+        !headers.contains_key("x-console-token") && self.check_paired(headers).is_ok()
+    }
+
     /// A pairing attempt from `from` with `code`: a new session's cookie value.
     pub fn pair(&self, from: IpAddr, code: &str) -> Result<String, Refusal> {
         self.check_code(Some(from), code.as_bytes())?;

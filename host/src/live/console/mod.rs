@@ -11,6 +11,7 @@
 //! origin as JSON), on the loopback as on the network.
 
 mod guard;
+pub use guard::same;
 mod server;
 
 use std::net::{IpAddr, SocketAddr};

@@ -2,23 +2,24 @@
 //! client sends can stop or slow the station's loop, which only swaps a snapshot in and
 //! takes commands out of a bounded queue. Everything a client can make it hold is bounded:
 //!
-//! - connections: [`MAX_CONNECTIONS`] in all and [`MAX_PER_ADDRESS`] from one address. A
-//!   new connection over either takes the place of the oldest one that has not shown it is
-//!   paired (a request with the session cookie or the code), so idle or anonymous
-//!   connections cannot lock the operator out, not even from the same address (on the
-//!   loopback every client has the same); each lives at most [`CONNECTION_LIFETIME`] (a
-//!   browser reconnects), an idle one [`HEAD_TIMEOUT`];
+//! - connections: [`MAX_CONNECTIONS`] in all and [`MAX_PER_ADDRESS`] from one address,
+//!   admitted by [`crate::live::admission`]: a paired one (a request with the session
+//!   cookie or the code) is never closed to make room, an anonymous one lives at most
+//!   [`CONNECTION_LIFETIME`]; an idle one closes after [`HEAD_TIMEOUT`]; the listening
+//!   queue holds [`BACKLOG`] connections not yet accepted;
 //! - a request's head: [`MAX_HEAD`] bytes and 32 headers, read within [`HEAD_TIMEOUT`];
 //! - a body: [`MAX_BODY`] bytes, read within [`BODY_TIMEOUT`];
 //! - commands waiting for the station: [`COMMANDS`]; more are refused (503).
 
 use std::convert::Infallible;
-use std::net::{IpAddr, SocketAddr};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use super::guard::{Guard, Refusal, COOKIE_NAME};
+use crate::live::admission::{self, Admission, Limits};
 use base_station::station::OperatorCommand;
 use bytes::Bytes;
 use http_body_util::{BodyExt, Full, Limited};
@@ -27,12 +28,12 @@ use hyper::header::{HeaderValue, CONTENT_TYPE, SET_COOKIE};
 use hyper::{Method, Request, Response, StatusCode};
 use hyper_util::rt::{TokioIo, TokioTimer};
 use serde_json::Value;
-use tokio::sync::Notify;
 
-use super::guard::{Guard, Refusal, COOKIE_NAME};
-
-pub const MAX_CONNECTIONS: usize = 64;
-pub const MAX_PER_ADDRESS: usize = 16;
+pub const MAX_CONNECTIONS: usize = 256;
+pub const MAX_PER_ADDRESS: usize = 64;
+/// Connections the kernel queues before accept: a burst beyond it makes a client wait a
+/// second for its SYN to be sent again.
+pub const BACKLOG: i32 = 1024;
 pub const CONNECTION_LIFETIME: Duration = Duration::from_secs(60);
 pub const MAX_HEAD: usize = 8192;
 pub const HEAD_TIMEOUT: Duration = Duration::from_secs(5);
@@ -52,78 +53,15 @@ pub struct Shared {
     pub commands: SyncSender<OperatorCommand>,
 }
 
-/// One open connection.
-struct Entry {
-    id: u64,
-    address: IpAddr,
-    /// Set once the connection carried a paired request.
-    paired: Arc<AtomicBool>,
-    close: Arc<Notify>,
-}
-
-/// The open connections, oldest first.
-#[derive(Default)]
-struct Connections {
-    open: Mutex<Vec<Entry>>,
-    next: AtomicU64,
-}
-
-/// One open connection's place: given up when dropped.
-struct Slot {
-    connections: Arc<Connections>,
-    id: u64,
-    paired: Arc<AtomicBool>,
-    close: Arc<Notify>,
-}
-
-impl Connections {
-    /// A place for a connection from `address`, making room if needed by closing the
-    /// oldest unpaired connection (of `address`, when it is `address` that is over its
-    /// share); `None` when every connection in the way is paired.
-    fn open(self: &Arc<Self>, address: IpAddr) -> Option<Slot> {
-        let mut open = self.open.lock().ok()?;
-        let mine = open.iter().filter(|e| e.address == address).count();
-        let full = if mine >= MAX_PER_ADDRESS {
-            Some(Some(address))
-        } else {
-            (open.len() >= MAX_CONNECTIONS).then_some(None)
-        };
-        if let Some(among) = full {
-            let victim = open.iter().position(|e| {
-                !e.paired.load(Ordering::Relaxed) && among.is_none_or(|a| e.address == a)
-            })?;
-            open.remove(victim).close.notify_one();
-        }
-        let id = self.next.fetch_add(1, Ordering::Relaxed);
-        let (paired, close) = (Arc::new(AtomicBool::new(false)), Arc::new(Notify::new()));
-        open.push(Entry {
-            id,
-            address,
-            paired: paired.clone(),
-            close: close.clone(),
-        });
-        Some(Slot {
-            connections: self.clone(),
-            id,
-            paired,
-            close,
-        })
-    }
-}
-
-impl Drop for Slot {
-    fn drop(&mut self) {
-        if let Ok(mut open) = self.connections.open.lock() {
-            open.retain(|e| e.id != self.id);
-        }
-    }
-}
-
 /// Serves `listener` until the process ends.
 pub async fn serve(listener: std::net::TcpListener, shared: Arc<Shared>) -> std::io::Result<()> {
     listener.set_nonblocking(true)?;
+    crate::live::admission::deepen(&listener, BACKLOG);
     let listener = tokio::net::TcpListener::from_std(listener)?;
-    let connections: Arc<Connections> = Arc::default();
+    let connections = Admission::new(Limits {
+        total: MAX_CONNECTIONS,
+        per_address: MAX_PER_ADDRESS,
+    });
     loop {
         let (stream, peer) = match listener.accept().await {
             Ok(accepted) => accepted,
@@ -134,13 +72,15 @@ pub async fn serve(listener: std::net::TcpListener, shared: Arc<Shared>) -> std:
                 continue;
             }
         };
-        let Some(slot) = connections.open(peer.ip()) else {
+        let mut first = [0u8; MAX_HEAD];
+        let trusted = known(&shared.guard, admission::peek(&stream, &mut first));
+        let Some(slot) = connections.open(peer.ip(), trusted) else {
             continue; // dropped: closes the connection
         };
         let shared = shared.clone();
         tokio::spawn(async move {
             let _ = stream.set_nodelay(true);
-            let paired = slot.paired.clone();
+            let paired = slot.trust_flag();
             let service = hyper::service::service_fn(move |request| {
                 let (shared, paired) = (shared.clone(), paired.clone());
                 async move { Ok::<_, Infallible>(handle(&shared, peer, &paired, request).await) }
@@ -151,12 +91,42 @@ pub async fn serve(listener: std::net::TcpListener, shared: Arc<Shared>) -> std:
                 .max_buf_size(MAX_HEAD)
                 .max_headers(32)
                 .serve_connection(TokioIo::new(stream), service);
+            tokio::pin!(connection);
+            // An anonymous connection's lifetime is bounded; a paired one's is not (a
+            // browser that had to reconnect would be anonymous again for a moment).
+            let lifetime = async {
+                tokio::time::sleep(CONNECTION_LIFETIME).await;
+                while slot.is_trusted() {
+                    tokio::time::sleep(HEAD_TIMEOUT).await;
+                }
+            };
             tokio::select! {
-                _ = tokio::time::timeout(CONNECTION_LIFETIME, connection) => {}
-                _ = slot.close.notified() => {}
+                _ = &mut connection => {}
+                _ = lifetime => {}
+                _ = slot.evicted() => {}
             }
         });
     }
+}
+
+/// Whether `head`, what a new connection sent first, is a request with a live session.
+fn known(guard: &Guard, head: &[u8]) -> bool {
+    let mut headers = [httparse::EMPTY_HEADER; 32];
+    let mut request = httparse::Request::new(&mut headers);
+    if request.parse(head).is_err() {
+        return false;
+    }
+    let mut map = hyper::HeaderMap::new();
+    for h in request.headers.iter() {
+        let (Ok(name), Ok(value)) = (
+            hyper::header::HeaderName::from_bytes(h.name.as_bytes()),
+            HeaderValue::from_bytes(h.value),
+        ) else {
+            continue;
+        };
+        map.append(name, value);
+    }
+    guard.knows(&map)
 }
 
 fn respond(status: u16, content_type: &str, body: impl Into<Bytes>) -> Response<Full<Bytes>> {

@@ -8,8 +8,8 @@
 //! --realtime --live` serves the same. Timestamps: the caller's clock (the wall clock in
 //! `run`, the simulated one in `sim`).
 
-mod gate;
 pub mod layout;
+mod stream;
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -30,16 +30,14 @@ use base_station::station::BaseStation;
 use foxglove::messages::{
     FrameTransform, FrameTransforms, Log, PoseInFrame, SceneEntity, SceneUpdate, Vector3,
 };
-use foxglove::{
-    Channel, Context, McapWriter, McapWriterHandle, RawChannel, WebSocketServer,
-    WebSocketServerHandle,
-};
+use foxglove::{Channel, Context, McapWriter, McapWriterHandle, RawChannel};
+use stream::Stream;
 
 pub struct LiveRecording {
     _ctx: Arc<Context>,
     /// The writer, the partial file it writes and the path it takes at the end.
     writer: Option<Writer>,
-    server: Option<WebSocketServerHandle>,
+    server: Option<Stream>,
     radio: Arc<RawChannel>,
     events: Channel<Log>,
     poses: BTreeMap<u16, (Channel<PoseInFrame>, u32)>,
@@ -212,7 +210,7 @@ impl LiveRecording {
 
     pub fn close(self) -> anyhow::Result<()> {
         if let Some(server) = self.server {
-            server.stop().wait_blocking();
+            server.stop();
         }
         let Some((writer, partial, path)) = self.writer else {
             return Ok(());
@@ -425,21 +423,9 @@ fn open_writer(ctx: &Arc<Context>, scenario: &Scenario, path: &Path) -> anyhow::
     Ok((writer, partial, path.to_path_buf()))
 }
 
-/// The Foxglove server on the loopback only, behind the gate on `addr` that checks
-/// Origin.
-fn open_server(
-    ctx: &Arc<Context>,
-    addr: SocketAddr,
-    origins: &[String],
-) -> anyhow::Result<WebSocketServerHandle> {
-    let server = WebSocketServer::new()
-        .name("sweeper base station")
-        .context(ctx)
-        .bind("127.0.0.1", 0)
-        .start_blocking()
-        .context("cannot start the Foxglove server")?;
-    let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
-    let bound = gate::start(addr, inner, origins)?;
-    eprintln!("live (Foxglove WebSocket): ws://{bound}");
-    Ok(server)
+/// The live stream on `addr`, its URL printed for the operator.
+fn open_server(ctx: &Arc<Context>, addr: SocketAddr, origins: &[String]) -> anyhow::Result<Stream> {
+    let (stream, url) = stream::start(ctx, addr, origins)?;
+    eprintln!("live (Foxglove WebSocket): {url}");
+    Ok(stream)
 }
