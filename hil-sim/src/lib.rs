@@ -14,7 +14,7 @@
 //! - [`brain`]: the control code a robot runs, natively or in [`qemu`];
 //! - [`faults`]: faults and attacks injected on schedule; [`observer`]: what the judge
 //!   hears on the air when the station is another process;
-//! - [`metrics`]: what a run measured; [`exposure`]: the parked fleet a moving one is
+//! - [`metrics`]: what a run measured ([`swept`]: the ground the brushes swept); [`exposure`]: the parked fleet a moving one is
 //!   judged against among oblivious movers; [`report`], [`plot`], [`trace`], [`recording`]: its
 //!   report, figure, CSV trace and MCAP; [`run`]: one run, start to report.
 
@@ -33,6 +33,7 @@ pub mod report;
 pub mod ring;
 pub mod run;
 pub mod scanner;
+pub mod swept;
 pub mod trace;
 pub mod tracking_bench;
 pub mod world;

@@ -168,6 +168,8 @@ pub struct Recorder {
     pub movers: MoverMeasures,
     /// The last physics step observed, µs.
     last_us: Option<u64>,
+    /// What the brushes swept, when the scenario has areas to sweep.
+    pub sweeping: Option<crate::swept::Sweeping>,
 }
 
 /// A robot moving slower than this stands, m/s.
@@ -401,6 +403,7 @@ impl Recorder {
             path: DrivenPath::default(),
             movers: MoverMeasures::new(),
             last_us: None,
+            sweeping: None,
         }
     }
 
@@ -433,6 +436,9 @@ impl Recorder {
             .last_us
             .map_or(0.0, |l| t_us.saturating_sub(l) as f64 / 1e6);
         self.last_us = Some(t_us);
+        if let Some(sweeping) = &mut self.sweeping {
+            sweeping.observe(t_us as f64 / 1e6, dt, robots, movers);
+        }
         if !movers.is_empty() {
             let bodies: Vec<RobotNow> = robots
                 .iter()

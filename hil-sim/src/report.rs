@@ -6,7 +6,7 @@
 //! robot's speed, the closing speed and the robot's energy), floors
 //! `min_person_clearance_m` at 0 (the overlap is `deepest_person_overlap_m`), adds
 //! `min_vehicle_clearance_m`, and leaves the tracking errors null where nothing was
-//! detected.
+//! detected. 5 adds `coverage` where the scenario has areas to sweep.
 
 use std::collections::BTreeMap;
 
@@ -18,7 +18,7 @@ use serde::Serialize;
 
 use crate::metrics::{Recorder, Sample, SAMPLE_PERIOD_US};
 
-pub const SCHEMA_VERSION: u32 = 4;
+pub const SCHEMA_VERSION: u32 = 5;
 
 /// A follower has joined at its first sample under this error, m.
 pub const JOINED_BELOW_M: f64 = 0.1;
@@ -127,6 +127,9 @@ pub struct Report {
     pub station_events: Vec<StationEventReport>,
     /// What the robots did among the people, cyclists and vehicles on the site.
     pub movers: MoversReport,
+    /// What the brushes swept (schema 5; only with `[[sweep]]` areas).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<crate::swept::SweepReport>,
 }
 
 /// The robots among the movers (schema 3).
@@ -505,6 +508,7 @@ pub fn build_report(
             ),
             ..MoversReport::of(rec, facts.movers, facts.roles.len(), facts.sim_time_s)
         },
+        coverage: rec.sweeping.as_ref().map(|s| s.report()),
     }
 }
 

@@ -210,6 +210,8 @@ impl Tracked for SimRobot {
 }
 
 pub struct World {
+    /// The points the leader drives to, in order (the sweep's, then the route's).
+    route_points: Vec<DVec2>,
     pub scenario: Scenario,
     pub map: Map,
     pub station: BaseStation,
@@ -293,10 +295,13 @@ impl World {
         let movers = Movers::new(&scenario, &map, options.seed);
         let mover_states = movers.states(0.0).collect();
         let scanner = Scanner::new(&scenario);
-        let recorder = Recorder::new(&scenario);
+        let mut recorder = Recorder::new(&scenario);
+        recorder.sweeping = crate::swept::Sweeping::new(&scenario, &map);
+        let route_points = scenario.route_points();
         let radio_params = *radio.params();
         let injector = Injector::new(scenario.faults.clone(), options.seed);
         Ok(Self {
+            route_points,
             injector,
             radio_params,
             scanner,
@@ -785,7 +790,7 @@ impl World {
         let Some(external) = &mut self.external else {
             return self.station.arrived();
         };
-        let route = self.scenario.route.points();
+        let route = &self.route_points;
         while let Some(p) = route.get(external.next_route_point) {
             let last = external.next_route_point + 1 == route.len();
             let tol = if last {

@@ -212,6 +212,7 @@ where
         .x_desc("x (m)")
         .y_desc("y (m)")
         .draw()?;
+    draw_swept(&mut chart, world)?;
     draw_site(&mut chart, world)?;
     draw_movers(&mut chart, world, report)?;
     draw_marks(&mut chart, world)?;
@@ -220,6 +221,45 @@ where
     pins::on_map(&mut chart, world, pins)?;
     legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     pins::list(&area, pins)
+}
+
+/// What the brushes swept, under everything else: once in pale green, twice or more in a
+/// deeper one, missed in pale red with each missed patch's bounds outlined.
+fn draw_swept<'a, DB: DrawingBackend + 'a>(
+    chart: &mut TimeChart<'a, DB>,
+    world: &World,
+) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let Some(sweeping) = &world.recorder.sweeping else {
+        return Ok(());
+    };
+    let shades = [
+        RGBColor(250, 200, 200),
+        RGBColor(200, 235, 200),
+        RGBColor(150, 205, 150),
+    ];
+    let cell = base_station::coverage::grid::CELL;
+    for (count, label) in [(1u8, "swept"), (2, "swept twice or more"), (0, "missed")] {
+        let color = shades[count as usize];
+        let runs = sweeping.grid().runs().into_iter().filter(|r| r.2 == count);
+        chart
+            .draw_series(runs.map(|(at, len, _)| {
+                Rectangle::new([(at.x, at.y), (at.x + len, at.y + cell)], color.filled())
+            }))?
+            .label(label)
+            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 16, y + 4)], color.filled()));
+    }
+    let red = RGBColor(200, 40, 40);
+    let missed = sweeping.report().swept.missed;
+    chart.draw_series(missed.iter().filter(|m| m.area_m2 >= 0.5).map(|m| {
+        Rectangle::new(
+            [(m.min[0], m.min[1]), (m.max[0], m.max[1])],
+            red.stroke_width(1),
+        )
+    }))?;
+    Ok(())
 }
 
 /// The obstacles, the goal and the planned route.

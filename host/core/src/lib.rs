@@ -11,6 +11,8 @@
 //!   watched). What `run` and the simulator both drive.
 //! - [`planner`]: the leader's route on the map ([`planner::route`]) and the APF as its
 //!   local layer ([`planner::apf`]), or the paper's pure field.
+//! - [`coverage`]: areas swept: the coverage route (boustrophedon passes), the formation's
+//!   swath, the ground a run swept.
 //! - [`formation`]: slots, the switch to a line and back, the pace of a change; the
 //!   follower's geometry is the control core's.
 //! - [`perception`]: from the leader's scans to what the map does not hold, and
@@ -25,6 +27,7 @@
 //!   simulator and real runs.
 //! - [`transport`]: serial modem and UDP.
 
+pub mod coverage;
 pub mod formation;
 pub mod geometry;
 pub mod localization;

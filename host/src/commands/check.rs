@@ -29,13 +29,16 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         spec.line_spacing
     );
     let route = s.route.points();
-    let last = route.last().expect("validated");
-    println!(
-        "route       {} point(s), goal ({:.2}, {:.2})",
-        route.len(),
-        last.x,
-        last.y
-    );
+    match route.last() {
+        Some(last) => println!(
+            "route       {} point(s), goal ({:.2}, {:.2})",
+            route.len(),
+            last.x,
+            last.y
+        ),
+        None => println!("route       none: the fleet stops where the sweep ends"),
+    }
+    print_sweep(&s);
     print_movers(&s);
     println!(
         "gains       k1 {} k2 {} d {} | k_a {} k_r {} R_det {}",
@@ -51,6 +54,65 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     println!("ok");
     Ok(())
 }
+
+/// The sweep's plan, before anything moves: per area its passes and their length, then
+/// the swath, the ground the passes cover, the length and an estimate of the time.
+fn print_sweep(s: &base_station::scenario::Scenario) {
+    use base_station::coverage::grid::Coverage;
+    let Some(plan) = s.sweep_plan() else {
+        return;
+    };
+    let sw = plan.swath;
+    println!(
+        "sweep       swath {:.2} m ({} robots' brushes of {:.2} m), passes {:.2} m apart",
+        sw.width,
+        s.robots.len(),
+        sw.brush,
+        plan.spacing
+    );
+    if sw.gap > 0.0 {
+        println!(
+            "            the wide shape leaves gaps of {:.2} m between brushes: each pass \
+             sweeps the leader's brush; bring the followers closer (formation.distance) \
+             to sweep side by side",
+            sw.gap
+        );
+    }
+    let areas: Vec<Vec<glam::DVec2>> = s.sweep.iter().map(|a| a.points()).collect();
+    let mut expected = Coverage::new(&areas, &s.build_map(), s.robot.footprint_radius, sw.width);
+    let mut length = 0.0;
+    for a in &plan.areas {
+        let l = a.plan.length();
+        length += l;
+        println!(
+            "area {:<6} {}: {:.0} m², {} cells, {} passes at {:.0}°, {:.0} m",
+            a.index,
+            a.name,
+            a.outline_m2,
+            a.plan.cells,
+            a.plan.passes.len(),
+            a.plan.direction.to_degrees(),
+            l
+        );
+        for p in &a.plan.passes {
+            let heading = (p.to - p.from).to_angle();
+            expected.sweep(0, (p.from, heading), (p.to, heading), 0.0);
+        }
+    }
+    let e = expected.summary();
+    let cruise = s.planner.max_speed.min(s.robot.max_speed);
+    let minutes = (length / cruise + plan.passes() as f64 * TURN_S) / 60.0;
+    println!(
+        "            {} passes, {length:.0} m; the passes cover {:.1} % of {:.0} m² to sweep; \
+         about {minutes:.0} min at {cruise:.1} m/s",
+        plan.passes(),
+        100.0 * e.swept_fraction,
+        e.to_sweep_m2
+    );
+}
+
+/// A turn between passes, s: slowing, turning through 180° with the followers, settling.
+const TURN_S: f64 = 8.0;
 
 /// The scenario's movers, one line each, and its crowds (simulation only).
 fn print_movers(s: &base_station::scenario::Scenario) {

@@ -293,7 +293,10 @@ impl Routing {
             } else {
                 p.waypoint_tolerance
             };
-            if (route.point_at(arc) - pos).length() > tol {
+            // Reached, or (an intermediate one) left behind along the route: a leader that
+            // went round it wider than `tol` must not be sent back for it at a replan.
+            let behind = !last && s > arc + tol;
+            if (route.point_at(arc) - pos).length() > tol && !behind {
                 break;
             }
             self.waypoint_arc.remove(0);
@@ -568,6 +571,34 @@ impl Planner {
 
     pub fn arrived(&self) -> bool {
         self.mode == Mode::Arrived
+    }
+
+    /// How many of the route's points the leader has passed.
+    pub fn passed(&self) -> usize {
+        self.next
+    }
+
+    /// Puts `points` next on the route, before those still to come, and plans the route
+    /// again; a leader that had arrived goes on.
+    pub fn insert_ahead(&mut self, points: &[DVec2]) {
+        if points.is_empty() {
+            return;
+        }
+        let at = self.next.min(self.route.len());
+        self.route.splice(at..at, points.iter().copied());
+        self.progress.clear();
+        match self.routing.as_mut() {
+            Some(routing) => {
+                routing.route = None;
+                routing.failure = None;
+                if self.mode == Mode::Arrived {
+                    self.mode = Mode::Route;
+                }
+            }
+            None if self.mode == Mode::Arrived => self.mode = Mode::Field,
+            None => {}
+        }
+        self.events.retain(|e| !matches!(e, PlannerEvent::Arrived));
     }
 
     /// One planning step. `half_width`: the formation's lateral half-width (0 for a line),

@@ -20,6 +20,7 @@ mod locate;
 mod lower;
 pub mod movers;
 mod reach;
+pub mod sweep;
 mod validate;
 
 use locate::{line_col, locate};
@@ -106,6 +107,8 @@ pub struct Scenario {
     pub robot: RobotSpec,
     pub robots: Vec<RobotEntry>,
     pub formation: FormationToml,
+    /// Optional where the file has areas to sweep (validated).
+    #[serde(default)]
     pub route: RouteSpec,
     #[serde(default)]
     pub planner: PlannerToml,
@@ -131,6 +134,9 @@ pub struct Scenario {
     /// Faults and attacks the simulator injects (simulation only).
     #[serde(default)]
     pub faults: Vec<FaultSpec>,
+    /// Areas to sweep, before the route's own points.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sweep: Vec<sweep::SweepSpec>,
 }
 
 /// What goes wrong. Append-only.
@@ -415,6 +421,8 @@ pub struct RobotSpec {
     pub motor_dead_band: f64,
     /// Mass with brushes, bin and battery, kg: a contact's energy in the report.
     pub mass_kg: f64,
+    /// The width the robot's brushes sweep, centred on it, m.
+    pub brush_width: f64,
 }
 
 impl Default for RobotSpec {
@@ -435,6 +443,8 @@ impl Default for RobotSpec {
             motor_dead_band: 0.03,
             // A 0.6 m wide sweeper with its brushes, a 40 l bin and a battery.
             mass_kg: 60.0,
+            // Two side brushes reaching 5 cm beyond the 0.6 m body.
+            brush_width: 0.7,
         }
     }
 }
@@ -528,6 +538,17 @@ pub struct RouteSpec {
     pub arrival_tolerance: f64,
     #[serde(default = "defaults::waypoint_tolerance")]
     pub waypoint_tolerance: f64,
+}
+
+impl Default for RouteSpec {
+    fn default() -> Self {
+        Self {
+            waypoints: Vec::new(),
+            goal: None,
+            arrival_tolerance: defaults::arrival_tolerance(),
+            waypoint_tolerance: defaults::waypoint_tolerance(),
+        }
+    }
 }
 
 impl RouteSpec {

@@ -22,6 +22,8 @@ pub const MAX_WAYPOINTS: usize = 10_000;
 pub const MAX_FLEET: usize = 1024;
 /// Most faults a simulation injects.
 pub const MAX_FAULTS: usize = 1_000;
+/// Areas to sweep in one file.
+pub const MAX_AREAS: usize = 256;
 /// How many times over the obstacles' boxes, each weighted by its points (1 for a circle
 /// or segment), may cover the site's box: the planner measures every cell of a box from
 /// every edge, so this bounds its work (a city map covers its site a few times).
@@ -121,6 +123,7 @@ impl Scenario {
         self.check_gains(&mut p);
         self.check_sim(&mut p);
         self.check_movers(&mut p);
+        self.check_sweeps(&mut p);
         if p.1 > 0 {
             let more = format!("and {} more problems", p.1);
             p.0.push((String::new(), more));
@@ -173,6 +176,11 @@ impl Scenario {
             "waypoints",
         );
         ok &= p.at_most("robots", self.robots.len(), MAX_FLEET, "robots");
+        ok &= p.at_most("sweep", self.sweep.len(), MAX_AREAS, "areas");
+        for (i, a) in self.sweep.iter().enumerate() {
+            let field = format!("sweep[{i}].polygon");
+            ok &= p.at_most(&field, a.polygon.len(), MAX_POLYGON_POINTS, "points");
+        }
         ok &= p.at_most("faults", self.faults.len(), MAX_FAULTS, "faults");
         let persons: usize = self
             .crowds
@@ -433,8 +441,8 @@ impl Scenario {
 
     fn check_route(&self, p: &mut Problems, map_ok: bool) {
         let route = self.route.points();
-        if route.is_empty() {
-            p.fail("route", "give a goal or at least one waypoint");
+        if route.is_empty() && self.sweep.is_empty() {
+            p.fail("route", "give a goal, a waypoint or an area to sweep");
         }
         // The known map: a waypoint beside something unmapped is the route's problem to
         // solve on the way, not the file's.
@@ -455,6 +463,49 @@ impl Scenario {
         }
         p.positive("route.arrival_tolerance", self.route.arrival_tolerance);
         p.positive("route.waypoint_tolerance", self.route.waypoint_tolerance);
+    }
+
+    /// Each area: an outline of at least three points, not crossing itself, within reach of
+    /// coordinates; an overlap less than the swath; entry and exit points.
+    fn check_sweeps(&self, p: &mut Problems) {
+        if self.sweep.is_empty() {
+            return;
+        }
+        let swath = self.swath();
+        p.positive("robot.brush_width", self.robot.brush_width);
+        for (i, a) in self.sweep.iter().enumerate() {
+            let field = format!("sweep[{i}].polygon");
+            let flat: Vec<f64> = a.polygon.iter().flatten().copied().collect();
+            if a.polygon.len() < 3 {
+                p.fail(&field, "give at least three points");
+            } else if p.coordinates(&field, &flat) {
+                let points = a.points();
+                if crate::coverage::area(&points) < 1.0 {
+                    p.fail(&field, "the area is under 1 m²");
+                } else if crosses_itself(&points) {
+                    p.fail(&field, "the outline crosses itself");
+                }
+            }
+            let overlap = format!("sweep[{i}].overlap");
+            if p.non_negative(&overlap, a.overlap) && a.overlap >= 0.5 * swath.width {
+                p.fail(
+                    &overlap,
+                    &format!(
+                        "must be under half the swath ({:.2} m of {:.2} m)",
+                        0.5 * swath.width,
+                        swath.width
+                    ),
+                );
+            }
+            if let Some(d) = a.direction_deg {
+                p.finite(&format!("sweep[{i}].direction_deg"), &[d]);
+            }
+            for (name, q) in [("entry", a.entry), ("exit", a.exit)] {
+                if let Some(q) = q {
+                    p.coordinates(&format!("sweep[{i}].{name}"), &q);
+                }
+            }
+        }
     }
 
     fn check_gains(&self, p: &mut Problems) {
@@ -728,4 +779,15 @@ fn check_obstacle(p: &mut Problems, field: &str, o: &ObstacleSpec) {
             p.coordinates(&format!("{field}.points[{j}]"), q);
         }
     }
+}
+
+/// Whether two edges of the closed outline `points` cross (neighbours share a corner).
+fn crosses_itself(points: &[DVec2]) -> bool {
+    let n = points.len();
+    let edge = |i: usize| (points[i], points[(i + 1) % n]);
+    let cross = |(a, b): (DVec2, DVec2), (c, d): (DVec2, DVec2)| {
+        let side = |p: DVec2, q: DVec2, r: DVec2| (q - p).perp_dot(r - p);
+        side(a, b, c) * side(a, b, d) < 0.0 && side(c, d, a) * side(c, d, b) < 0.0
+    };
+    (0..n).any(|i| ((i + 2)..n).any(|j| (i + n - j) % n != 1 && cross(edge(i), edge(j))))
 }

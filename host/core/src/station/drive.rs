@@ -163,9 +163,13 @@ impl BaseStation {
     ) {
         let now_s = now_ms as f64 / 1000.0;
         let (pace, change) = self.pace_of(leader, look, decision);
-        let drive = self
+        let mut drive = self
             .guidance
             .drive(now_s, leader.pose, pace, change, &self.world);
+        if self.touch_up(leader.pose.position, now_ms) {
+            // Not there yet: the leader goes back for what the sweep missed.
+            drive.events.retain(|e| !matches!(e, PlannerEvent::Arrived));
+        }
         self.report_planner(&drive.events, now_ms);
         if drive
             .events
@@ -180,6 +184,33 @@ impl BaseStation {
             _ => (drive.v, drive.omega),
         };
         self.command_leader(leader, command, bodies, look.blend, now_ms);
+    }
+
+    /// Once an area's passes are all driven, the strips it missed (as the station
+    /// estimates its robots' brushes) are put next on the leader's route: whether any were.
+    fn touch_up(&mut self, at: DVec2, now_ms: u32) -> bool {
+        let Some(sweeping) = &mut self.sweeping else {
+            return false;
+        };
+        let planner = self.guidance.planner();
+        let (passed, arrived) = (planner.passed(), planner.arrived());
+        let Some(t) = sweeping.decide(passed, arrived, at, &self.world) else {
+            return false;
+        };
+        let area = sweeping.name(t.area).to_string();
+        tracing::info!(
+            area,
+            patches = t.patches,
+            missed_m2 = t.missed_m2,
+            "going back for what the sweep missed"
+        );
+        self.guidance.insert_ahead(&t.points);
+        self.events.push(StationEvent::SweepTouchUp {
+            area,
+            patches: t.patches,
+            at_ms: now_ms,
+        });
+        true
     }
 
     /// The leader's (v, ω) for its control point to make for `point`, as a follower's

@@ -112,6 +112,13 @@ pub enum StationEvent {
         refused: u64,
         at_ms: u32,
     },
+    /// The sweep of `area` missed `patches` strips (people, a detour, the line's narrow
+    /// swath): the leader goes back for them before leaving the area.
+    SweepTouchUp {
+        area: String,
+        patches: usize,
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -156,6 +163,7 @@ impl StationEvent {
             E::PaceResumed { at_ms } => (*at_ms, "pace_resumed".into(), Some(leader)),
             E::SteppingAside { at_ms } => (*at_ms, "stepping_aside".into(), Some(leader)),
             E::FeedRefused { input, at_ms, .. } => (*at_ms, format!("feed_refused:{input}"), None),
+            E::SweepTouchUp { area, at_ms, .. } => (*at_ms, format!("sweep_touch_up:{area}"), None),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }

@@ -118,6 +118,11 @@ impl Guidance {
         self.planner.route()
     }
 
+    /// Puts `points` next on the leader's route (the sweep going back for a strip).
+    pub fn insert_ahead(&mut self, points: &[DVec2]) {
+        self.planner.insert_ahead(points);
+    }
+
     /// Whether movers crowd the formation's way (the wide shape gives way to the line).
     pub fn set_crowded(&mut self, crowded: bool) {
         self.formation.set_crowded(crowded);

@@ -66,6 +66,7 @@ use robots::way::Blocking;
 pub use smoothing::TurnRateSmoother;
 pub use story::{Ending, Progress};
 
+use crate::coverage::watch::SweepWatch;
 use crate::formation::{FollowerStatus, FormationManager, FormationSpec};
 use crate::geometry::map::Map;
 use crate::perception::tracking::{Motion, TrackView, Tracker};
@@ -142,6 +143,8 @@ pub struct StationConfig {
     pub robot: control_core::RobotConfig,
     /// How the station treats what moves: as it should, or a baseline to measure that by.
     pub movers: MoverPolicy,
+    /// The areas to sweep, when the route sweeps any.
+    pub sweep: Option<crate::coverage::watch::SweepSetup>,
 }
 
 /// How the station treats what moves. Only `Heed` drives a fleet; the other two are the
@@ -165,7 +168,7 @@ impl StationConfig {
             followers: s.followers().iter().map(|r| r.id).collect(),
             planner: s.planner_params(),
             formation: s.formation_spec(),
-            route: s.route.points(),
+            route: s.route_points(),
             map: s.build_map(),
             track_width: s.robot.track_width,
             initial_speed: s.leader().initial_speed,
@@ -182,6 +185,7 @@ impl StationConfig {
             control_offset: s.follower.d,
             robot: s.robot_config(),
             movers: MoverPolicy::Heed,
+            sweep: s.sweep_setup(),
         }
     }
 }
@@ -254,6 +258,8 @@ pub struct BaseStation {
     running_since_ms: Option<u32>,
     /// The followers held for people, and the point each makes for.
     people_holds: orders::Told,
+    /// The ground swept as the station estimates it, and what it goes back for.
+    sweeping: Option<SweepWatch>,
 }
 
 impl BaseStation {
@@ -277,7 +283,9 @@ impl BaseStation {
         for id in fleet.ids() {
             link.add_peer(Address::Robot(id), master.robot(id));
         }
+        let sweeping = cfg.sweep.clone().map(|s| SweepWatch::new(s, &cfg.map));
         Self {
+            sweeping,
             guidance: Guidance::new(&cfg),
             perception: Perception::new(cfg.perception),
             tracker: Tracker::new(cfg.yielding.personal_space_m),
@@ -310,6 +318,11 @@ impl BaseStation {
 
     pub fn config(&self) -> &StationConfig {
         &self.cfg
+    }
+
+    /// The ground swept as the station estimates it (with areas to sweep).
+    pub fn sweeping(&self) -> Option<&SweepWatch> {
+        self.sweeping.as_ref()
     }
 
     /// A site feed refused `refused` records in the last second (`input`: its name): an
@@ -463,6 +476,10 @@ impl BaseStation {
         // Every robot as estimated this period (the leader among them).
         let bodies = self.fleet.bodies(now_ms);
         let positions = drive::positions(leader.pose.position, &bodies, self.cfg.leader);
+        if let Some(sweeping) = &mut self.sweeping {
+            let estimated = bodies.iter().map(|b| (b.id, b.position, b.heading));
+            sweeping.observe(estimated, now_s);
+        }
         let footprint = self.guidance.formation().spec().footprint;
         let (predicted, crowd) = self.movers.observe(now_s, &positions, footprint, &tracks);
         self.guidance.set_crowded(crowd.line);

@@ -206,7 +206,7 @@ pub fn qr_text(text: &str) -> Option<String> {
 pub fn map_json(scenario: &base_station::scenario::Scenario) -> Value {
     json!({
         "obstacles": scenario.build_site().obstacles(),
-        "goal": scenario.route.points().last().map(|g| [g.x, g.y]),
+        "goal": scenario.route_points().last().map(|g| [g.x, g.y]),
     })
 }
 
