@@ -3,7 +3,7 @@
 //! The tests run them under their seeds; `paired` runs any of them through two
 //! `basestation` binaries side by side.
 
-use crate::generate::{self, movers as gen, Generated};
+use crate::generate::{self, movers as gen, sweeps, Generated};
 
 /// A suite: its name and its world for a seed.
 pub struct Suite {
@@ -18,6 +18,7 @@ pub enum Group {
     Streets,
     Crowds,
     Static,
+    Sweeps,
 }
 
 impl Group {
@@ -26,6 +27,7 @@ impl Group {
             Group::Streets => "streets",
             Group::Crowds => "crowds",
             Group::Static => "static",
+            Group::Sweeps => "sweeps",
         }
     }
 }
@@ -105,9 +107,14 @@ pub const SUITES: &[Suite] = &[
     suite!("unmapped-barriers", Static, |s| {
         generate::unmapped_in_the_way(2 * s - 1)
     }),
+    suite!("sweep-open-yards", Sweeps, sweeps::open_yard),
+    suite!("sweep-l-yards", Sweeps, sweeps::l_yard),
+    suite!("sweep-bin-plazas", Sweeps, sweeps::bin_plaza),
+    suite!("sweep-street-blocks", Sweeps, sweeps::street_block),
+    suite!("sweep-crowd-plazas", Sweeps, sweeps::crowd_plaza),
 ];
 
-/// The suites a word names: a group (`streets`, `crowds`, `static`), a suite's name, or
+/// The suites a word names: a group (`streets`, `crowds`, `static`, `sweeps`), a suite's name, or
 /// `all`; several joined by commas.
 pub fn named(words: &str) -> Result<Vec<&'static Suite>, String> {
     let mut out: Vec<&'static Suite> = Vec::new();
@@ -118,7 +125,7 @@ pub fn named(words: &str) -> Result<Vec<&'static Suite>, String> {
             .collect();
         if found.is_empty() {
             return Err(format!(
-                "no suite or group `{word}` (groups: streets, crowds, static, all)"
+                "no suite or group `{word}` (groups: streets, crowds, static, sweeps, all)"
             ));
         }
         for s in found {

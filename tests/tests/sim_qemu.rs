@@ -267,3 +267,19 @@ fn a_hanging_firmware_fails_the_run_instead_of_hanging_it() {
         "its last log line: {msg}"
     );
 }
+
+/// A sweep: an open yard swept back and forth (the passes, the U-turns, the touch-up
+/// watch), identical in QEMU, coverage included.
+#[test]
+fn identical_to_native_on_a_sweep() {
+    let g = generate::sweeps::open_yard(3);
+    let s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
+    let r = assert_identical(s, 3);
+    let c = r.coverage.expect("a sweep reports its coverage");
+    println!(
+        "{}: identical, {:.1} % swept",
+        g.name,
+        100.0 * c.swept.swept_fraction
+    );
+    assert!(r.goal_reached);
+}

@@ -5,7 +5,7 @@ use clap::Args;
 #[derive(Args, Debug)]
 pub struct CheckArgs {
     /// A scenario file, or a shipped scenario's name (paper-obstacles, paper-passage,
-    /// street-crossing, plaza-crowd).
+    /// street-crossing, plaza-crowd, plaza-sweep, street-block-sweep).
     pub scenario: String,
 }
 

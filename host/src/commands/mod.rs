@@ -40,6 +40,14 @@ pub const SHIPPED: &[(&str, &str)] = &[
         "plaza-crowd",
         include_str!("../../../scenarios/plaza-crowd.toml"),
     ),
+    (
+        "plaza-sweep",
+        include_str!("../../../scenarios/plaza-sweep.toml"),
+    ),
+    (
+        "street-block-sweep",
+        include_str!("../../../scenarios/street-block-sweep.toml"),
+    ),
 ];
 
 /// A scenario from a file, or a shipped one by name; refused, with every unreachable

@@ -23,7 +23,7 @@ use crate::live::feeds::localization::{FixPublisher, PublishArg};
 #[derive(Args, Debug)]
 pub struct RobotsArgs {
     /// A scenario file, or a shipped scenario's name (paper-obstacles, paper-passage,
-    /// street-crossing, plaza-crowd).
+    /// street-crossing, plaza-crowd, plaza-sweep, street-block-sweep).
     pub scenario: String,
     /// Listen for the base station on this UDP address; answer whoever sent last.
     #[arg(long, conflicts_with = "pty", required_unless_present = "pty")]

@@ -19,7 +19,7 @@ use serde_json::json;
 #[command(group(clap::ArgGroup::new("transport").required(true).args(["port", "udp"])))]
 pub struct RunArgs {
     /// A scenario file, or a shipped scenario's name (paper-obstacles, paper-passage,
-    /// street-crossing, plaza-crowd).
+    /// street-crossing, plaza-crowd, plaza-sweep, street-block-sweep).
     pub scenario: String,
     /// Serial device of the radio modem (e.g. /dev/ttyUSB0).
     #[arg(long)]

@@ -18,7 +18,7 @@ use hil_sim::world::{SimOptions, World};
 #[derive(Args, Debug)]
 pub struct SimArgs {
     /// A scenario file, or a shipped scenario's name (paper-obstacles, paper-passage,
-    /// street-crossing, plaza-crowd).
+    /// street-crossing, plaza-crowd, plaza-sweep, street-block-sweep).
     #[arg(default_value = "paper-obstacles")]
     pub scenario: String,
     /// Where to write the JSON report [default: out/SCENARIO.json].

@@ -5,6 +5,7 @@
 use std::fmt::Write as _;
 
 pub mod movers;
+pub mod sweeps;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -66,7 +66,8 @@ pub struct Swept {
     pub missed_patches: usize,
 }
 
-fn point_in(p: DVec2, polygon: &[DVec2]) -> bool {
+/// Whether `p` is inside `polygon` (even-odd).
+pub fn inside(p: DVec2, polygon: &[DVec2]) -> bool {
     let mut inside = false;
     let mut j = polygon.len() - 1;
     for i in 0..polygon.len() {
@@ -82,7 +83,7 @@ fn point_in(p: DVec2, polygon: &[DVec2]) -> bool {
 /// Whether `p` is inside `polygon` or within `within` of its outline.
 fn near_or_in(p: DVec2, polygon: &[DVec2], within: f64) -> bool {
     let n = polygon.len();
-    point_in(p, polygon)
+    inside(p, polygon)
         || (0..n).any(|i| {
             let q = crate::geometry::closest_on_segment(p, polygon[i], polygon[(i + 1) % n]);
             q.distance(p) <= within
@@ -116,7 +117,7 @@ impl Coverage {
                 .iter()
                 .position(|poly| near_or_in(c, poly, 0.5 * brush))
                 .map_or(0, |a| (a + 1).min(255) as u8);
-            let Some(a) = areas.iter().position(|poly| point_in(c, poly)) else {
+            let Some(a) = areas.iter().position(|poly| inside(c, poly)) else {
                 continue;
             };
             let clear = map.clearance(c, reach.max(0.0) + CELL);

@@ -65,8 +65,8 @@ pub fn trail(formation: &FormationSpec) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// A robot heading within this of an area's passes sweeps, rad (45°).
-pub const ALONG: f64 = std::f64::consts::FRAC_PI_4;
+/// A robot heading within this of an area's passes sweeps, rad (30°).
+pub const ALONG: f64 = std::f64::consts::FRAC_PI_6;
 
 /// Whether a robot at `position` heading `heading` has its brushes down: inside an area's
 /// outline grown by half a brush, heading along that area's passes (`directions`, rad,

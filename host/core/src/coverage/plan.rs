@@ -289,10 +289,12 @@ fn order(cells: &[Cell], lines: &[Line], mut at: DVec2) -> Vec<Pass> {
     passes
 }
 
-/// Each pass run on past its ends by up to `trail`, where the line has room for the
-/// leader (the area's edge is not a wall; what the map holds is).
+/// Each pass run on past its end by up to `trail`, where the line has room for the leader
+/// (the area's edge is not a wall; what the map holds is), so the trailing brushes reach
+/// the edge; at its start they come in behind the leader anyway.
 fn run_on(turned: &Turned, passes: &mut [Pass], p: &SweepParams) {
     for Pass { from: a, to: b, .. } in passes.iter_mut() {
+        let a = &*a;
         let room = subtract(
             &[(f64::NEG_INFINITY, f64::INFINITY)],
             &turned.blocked(a.y, p.clearance),
@@ -303,9 +305,6 @@ fn run_on(turned: &Turned, passes: &mut [Pass], p: &SweepParams) {
                 .copied()
         };
         let sign = (b.x - a.x).signum();
-        if let Some((lo, hi)) = within(a.x) {
-            a.x = (a.x - sign * p.trail).clamp(lo, hi);
-        }
         if let Some((lo, hi)) = within(b.x) {
             b.x = (b.x + sign * p.trail).clamp(lo, hi);
         }
@@ -412,15 +411,12 @@ mod tests {
             assert!(d0.dot(d1) < 0.0, "pass {k} and the next go opposite ways");
             assert!((w[1].from.y - w[0].to.y).abs() <= 1.8 + 1e-9);
         }
-        // Run on past the edges by the trail: the area is open.
-        let xs: Vec<f64> = plan
-            .passes
-            .iter()
-            .flat_map(|p| [p.from.x, p.to.x])
-            .collect();
-        assert!(xs
-            .iter()
-            .all(|x| (*x + 1.0).abs() < 1e-9 || (*x - 41.0).abs() < 1e-9));
+        // Each starts at the edge and runs on past the other by the trail (open area).
+        for p in &plan.passes {
+            let east = p.to.x > p.from.x;
+            assert_eq!(p.from.x, if east { 0.0 } else { 40.0 }, "{p:?}");
+            assert_eq!(p.to.x, if east { 41.0 } else { -1.0 }, "{p:?}");
+        }
         assert!((plan.passes[0].from.y - 1.0).abs() < 1e-9);
     }
 

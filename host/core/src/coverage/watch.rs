@@ -15,6 +15,11 @@ use crate::geometry::map::Map;
 /// A missed patch smaller than this is not worth going back for, m² (a brush's width
 /// by a metre and a half).
 pub const MIN_PATCH_M2: f64 = 1.0;
+/// A touch-up whose next point the leader has not reached for this long is given up, s
+/// (a pass and two turns take well under a minute).
+pub const GIVE_UP_AFTER_S: f64 = 60.0;
+/// Coming this much nearer the next point is progress, m.
+const PROGRESS_M: f64 = 0.5;
 
 /// One area as the station sweeps it.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +55,17 @@ pub struct TouchUp {
     pub missed_m2: f64,
 }
 
+/// A touch-up under way, and the leader's last progress on it.
+#[derive(Debug, Clone, Copy)]
+struct Touching {
+    /// The route point (index) it runs up to.
+    end: usize,
+    /// Route points passed, and the distance to the next, at the last progress.
+    passed: usize,
+    nearest: f64,
+    since_s: f64,
+}
+
 #[derive(Debug, Clone)]
 pub struct SweepWatch {
     setup: SweepSetup,
@@ -59,6 +75,8 @@ pub struct SweepWatch {
     done: Vec<bool>,
     /// Each robot's last pose (id, position, heading).
     last: Vec<(u16, DVec2, f64)>,
+    /// The touch-up under way.
+    touching: Option<Touching>,
 }
 
 impl SweepWatch {
@@ -69,6 +87,7 @@ impl SweepWatch {
             directions: setup.areas.iter().map(|a| a.direction).collect(),
             done: vec![false; setup.areas.len()],
             last: Vec::new(),
+            touching: None,
             grid,
             setup,
         }
@@ -100,6 +119,7 @@ impl SweepWatch {
         arrived: bool,
         at: DVec2,
         map: &Map,
+        now_s: f64,
     ) -> Option<TouchUp> {
         let i = (0..self.setup.areas.len())
             .find(|i| !self.done[*i] && (passed > self.setup.areas[*i].last_point || arrived))?;
@@ -132,6 +152,12 @@ impl SweepWatch {
         for later in &mut self.setup.areas[i + 1..] {
             later.last_point += points.len();
         }
+        self.touching = Some(Touching {
+            end: passed + points.len(),
+            passed,
+            nearest: f64::INFINITY,
+            since_s: now_s,
+        });
         Some(TouchUp {
             area: i,
             patches: patches.len(),
@@ -139,6 +165,38 @@ impl SweepWatch {
                 * super::grid::CELL.powi(2),
             points,
         })
+    }
+
+    /// With `passed` route points behind the leader, at `at` making for `next` at `now_s`:
+    /// how many points of a touch-up to give up, when the leader has come no nearer its
+    /// next point for [`GIVE_UP_AFTER_S`] (a tight spot the fleet cannot sweep: better
+    /// missed than stuck).
+    pub fn give_up(
+        &mut self,
+        passed: usize,
+        at: DVec2,
+        next: Option<DVec2>,
+        now_s: f64,
+    ) -> Option<usize> {
+        let t = self.touching.as_mut()?;
+        if passed >= t.end {
+            self.touching = None;
+            return None;
+        }
+        let distance = next.map_or(0.0, |n| n.distance(at));
+        if passed > t.passed || distance < t.nearest - PROGRESS_M {
+            (t.passed, t.nearest, t.since_s) = (passed, distance, now_s);
+            return None;
+        }
+        if now_s - t.since_s < GIVE_UP_AFTER_S {
+            return None;
+        }
+        let end = t.end;
+        self.touching = None;
+        for later in self.setup.areas.iter_mut().filter(|a| a.last_point >= end) {
+            later.last_point -= end - passed;
+        }
+        Some(end - passed)
     }
 
     /// The station's estimate of the ground swept.
@@ -227,11 +285,11 @@ mod tests {
             }
         }
         assert!(
-            w.decide(3, false, DVec2::ZERO, &map).is_none(),
+            w.decide(3, false, DVec2::ZERO, &map, 0.0).is_none(),
             "not yet passed"
         );
         let t = w
-            .decide(4, false, DVec2::new(20.0, 3.0), &map)
+            .decide(4, false, DVec2::new(20.0, 3.0), &map, 30.0)
             .expect("a touch-up");
         assert_eq!(t.patches, 1);
         assert!((t.missed_m2 - 52.0).abs() < 3.0, "{}", t.missed_m2);
@@ -244,8 +302,18 @@ mod tests {
         assert!(t.points.len() >= 8, "{:?}", t.points);
         assert!(t.points[0].x > 15.0);
         assert!(
-            w.decide(9, false, DVec2::ZERO, &map).is_none(),
+            w.decide(9, false, DVec2::ZERO, &map, 31.0).is_none(),
             "once per area"
         );
+        // Coming nearer is progress; stuck short of its second point, given up a minute
+        // after the last progress.
+        let next = Some(DVec2::new(10.0, 2.0));
+        assert_eq!(w.give_up(4, DVec2::new(20.0, 2.0), next, 40.0), None);
+        assert_eq!(w.give_up(4, DVec2::new(15.0, 2.0), next, 90.0), None);
+        assert_eq!(w.give_up(5, DVec2::new(12.0, 2.0), next, 120.0), None);
+        assert_eq!(w.give_up(5, DVec2::new(11.9, 2.0), next, 179.0), None);
+        let left = w.give_up(5, DVec2::new(11.9, 2.0), next, 180.5);
+        assert_eq!(left, Some(t.points.len() - 1));
+        assert_eq!(w.give_up(5, DVec2::new(11.9, 2.0), next, 300.0), None);
     }
 }

@@ -573,6 +573,26 @@ impl Planner {
         self.mode == Mode::Arrived
     }
 
+    /// Takes the next `count` points off the route (those [`Planner::insert_ahead`] put
+    /// there and the leader could not reach) and plans the route again.
+    pub fn remove_ahead(&mut self, count: usize) {
+        let at = self.next.min(self.route.len());
+        let end = (at + count).min(self.route.len());
+        if end == at {
+            return;
+        }
+        self.route.drain(at..end);
+        self.progress.clear();
+        if let Some(routing) = self.routing.as_mut() {
+            routing.route = None;
+            routing.failure = None;
+        }
+        if self.next >= self.route.len() {
+            self.mode = Mode::Arrived;
+            self.note(PlannerEvent::Arrived);
+        }
+    }
+
     /// How many of the route's points the leader has passed.
     pub fn passed(&self) -> usize {
         self.next

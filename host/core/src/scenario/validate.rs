@@ -7,6 +7,7 @@ use super::movers::{
     CrowdSpec, MoverSpec, MAX_MOVERS, MAX_MOVER_SIZE, MAX_MOVER_SPEED, MAX_PATH_POINTS,
 };
 use super::*;
+use crate::coverage::grid::CELL;
 
 /// How far from the site's origin any coordinate may lie, m: a city is smaller.
 pub const MAX_COORDINATE: f64 = 1e6;
@@ -24,6 +25,9 @@ pub const MAX_FLEET: usize = 1024;
 pub const MAX_FAULTS: usize = 1_000;
 /// Areas to sweep in one file.
 pub const MAX_AREAS: usize = 256;
+/// Cells of the coverage grid over every area's box (about 50 MB for the station and
+/// as much for the simulator's truth).
+pub const MAX_COVERAGE_CELLS: f64 = 4e6;
 /// How many times over the obstacles' boxes, each weighted by its points (1 for a circle
 /// or segment), may cover the site's box: the planner measures every cell of a box from
 /// every edge, so this bounds its work (a city map covers its site a few times).
@@ -473,6 +477,26 @@ impl Scenario {
         }
         let swath = self.swath();
         p.positive("robot.brush_width", self.robot.brush_width);
+        let corners = self.sweep.iter().flat_map(|a| a.polygon.iter());
+        let (lo, hi) = corners.fold(([f64::MAX; 2], [f64::MIN; 2]), |(lo, hi), q| {
+            (
+                [lo[0].min(q[0]), lo[1].min(q[1])],
+                [hi[0].max(q[0]), hi[1].max(q[1])],
+            )
+        });
+        let cells = ((hi[0] - lo[0]) / CELL + 1.0) * ((hi[1] - lo[1]) / CELL + 1.0);
+        if cells > MAX_COVERAGE_CELLS {
+            p.fail(
+                "sweep",
+                &format!(
+                    "the areas' box is {:.0} m²: at most {:.0} m² (the coverage grid's {} cells \
+                     of {CELL} m); sweep a larger site in several runs",
+                    cells * CELL * CELL,
+                    MAX_COVERAGE_CELLS * CELL * CELL,
+                    MAX_COVERAGE_CELLS
+                ),
+            );
+        }
         for (i, a) in self.sweep.iter().enumerate() {
             let field = format!("sweep[{i}].polygon");
             let flat: Vec<f64> = a.polygon.iter().flatten().copied().collect();

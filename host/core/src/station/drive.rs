@@ -194,7 +194,19 @@ impl BaseStation {
         };
         let planner = self.guidance.planner();
         let (passed, arrived) = (planner.passed(), planner.arrived());
-        let Some(t) = sweeping.decide(passed, arrived, at, &self.world) else {
+        let now_s = now_ms as f64 / 1000.0;
+        let next = planner.current_waypoint();
+        if let Some(count) = sweeping.give_up(passed, at, next, now_s) {
+            tracing::warn!(
+                points = count,
+                "a touch-up the fleet cannot reach: given up"
+            );
+            self.guidance.remove_ahead(count);
+            self.events
+                .push(StationEvent::SweepGivenUp { at_ms: now_ms });
+            return false;
+        }
+        let Some(t) = sweeping.decide(passed, arrived, at, &self.world, now_s) else {
             return false;
         };
         let area = sweeping.name(t.area).to_string();

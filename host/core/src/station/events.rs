@@ -119,6 +119,11 @@ pub enum StationEvent {
         patches: usize,
         at_ms: u32,
     },
+    /// A touch-up the leader made no way on for a minute was given up: what it was for
+    /// stays unswept (the report's missed patches).
+    SweepGivenUp {
+        at_ms: u32,
+    },
     /// A robot reported a fault; `halts` when the fleet was stopped for it.
     RobotFault {
         robot: u16,
@@ -164,6 +169,7 @@ impl StationEvent {
             E::SteppingAside { at_ms } => (*at_ms, "stepping_aside".into(), Some(leader)),
             E::FeedRefused { input, at_ms, .. } => (*at_ms, format!("feed_refused:{input}"), None),
             E::SweepTouchUp { area, at_ms, .. } => (*at_ms, format!("sweep_touch_up:{area}"), None),
+            E::SweepGivenUp { at_ms } => (*at_ms, "sweep_touch_up_given_up".into(), None),
             E::Operator { command, at_ms } => {
                 (*at_ms, format!("operator_{}", command.name()), None)
             }
@@ -210,9 +216,11 @@ impl Severity {
             _ if event.starts_with("robot_fault:") || event.starts_with("feed_refused:") => {
                 Severity::Warning
             }
-            "localization_lost" | "follower_behind" | "operator_stop" | "local_minimum_escape" => {
-                Severity::Warning
-            }
+            "localization_lost"
+            | "follower_behind"
+            | "operator_stop"
+            | "local_minimum_escape"
+            | "sweep_touch_up_given_up" => Severity::Warning,
             _ => Severity::Info,
         }
     }

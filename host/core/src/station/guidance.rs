@@ -123,6 +123,11 @@ impl Guidance {
         self.planner.insert_ahead(points);
     }
 
+    /// Takes the next `count` points off the leader's route (a touch-up given up).
+    pub fn remove_ahead(&mut self, count: usize) {
+        self.planner.remove_ahead(count);
+    }
+
     /// Whether movers crowd the formation's way (the wide shape gives way to the line).
     pub fn set_crowded(&mut self, crowded: bool) {
         self.formation.set_crowded(crowded);
