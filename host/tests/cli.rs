@@ -48,6 +48,8 @@ fn shipped_scenarios_check_clean() {
         "paper-passage",
         "street-crossing",
         "plaza-crowd",
+        "plaza-sweep",
+        "street-block-sweep",
     ] {
         let (code, out, err) = basestation(&["check", name], None);
         assert_eq!(code, 0, "{err}");
@@ -64,6 +66,60 @@ fn shipped_scenarios_check_clean() {
         out.contains("crowd 0     social at 0.10 persons/m²"),
         "{out}"
     );
+    // A sweep's plan, before anything moves.
+    let (_, out, _) = basestation(&["check", "plaza-sweep"], None);
+    assert!(
+        out.contains("sweep       swath 2.00 m (3 robots' brushes of 0.70 m)"),
+        "{out}"
+    );
+    assert!(out.contains("area 0      plaza: 1200 m²"), "{out}");
+    assert!(out.contains("% of 1186 m² to sweep"), "{out}");
+}
+
+/// An area to sweep that is bad, or that nothing can reach, is refused with its line and
+/// field.
+#[test]
+fn bad_areas_to_sweep_are_refused_with_their_field() {
+    let area = |polygon: &str, more: &str| {
+        GOOD.replacen(
+            "[route]",
+            &format!("[[sweep]]\npolygon = {polygon}\n{more}\n[route]"),
+            1,
+        )
+    };
+    let cases = [
+        (
+            "two.toml",
+            area("[[0.0, 0.0], [5.0, 0.0]]", ""),
+            "field `sweep[0].polygon`: give at least three points",
+        ),
+        (
+            "bow.toml",
+            area("[[0.0, 0.0], [5.0, 5.0], [5.0, 0.0], [0.0, 5.0]]", ""),
+            "field `sweep[0].polygon`: the outline crosses itself",
+        ),
+        (
+            "overlap.toml",
+            area(
+                "[[0.0, 0.0], [5.0, 0.0], [5.0, 5.0], [0.0, 5.0]]",
+                "overlap = 5.0",
+            ),
+            "field `sweep[0].overlap`: must be under half the swath",
+        ),
+        (
+            "walled.toml",
+            area("[[3.9, 4.4], [5.1, 4.4], [5.1, 5.6], [3.9, 5.6]]", ""),
+            "field `sweep[0].polygon`: no pass fits: the area has no room for the leader",
+        ),
+    ];
+    for (name, text, expected) in cases {
+        let (code, err) = check_text(name, &text);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(
+            err.contains(expected),
+            "{name}:\n  got: {err}\n  expected: {expected}"
+        );
+    }
 }
 
 /// A shape the robots cannot hold (a slot on the leader) is refused, with its line.

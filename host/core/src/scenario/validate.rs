@@ -504,10 +504,10 @@ impl Scenario {
                 p.fail(&field, "give at least three points");
             } else if p.coordinates(&field, &flat) {
                 let points = a.points();
-                if crate::coverage::area(&points) < 1.0 {
-                    p.fail(&field, "the area is under 1 m²");
-                } else if crosses_itself(&points) {
+                if crosses_itself(&points) {
                     p.fail(&field, "the outline crosses itself");
+                } else if crate::coverage::area(&points) < 1.0 {
+                    p.fail(&field, "the area is under 1 m²");
                 }
             }
             let overlap = format!("sweep[{i}].overlap");
