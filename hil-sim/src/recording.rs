@@ -3,7 +3,8 @@
 //! points), the movers (`/movers`, the truth), what the station tracks (`/tracks`) and the
 //! marks it keeps of what its scans found unmapped (`/sensed`), each robot's pose, speeds
 //! and tracking error (plottable), the base station's events as log messages, and the raw
-//! radio bytes every node sent (`/radio`, JSON, which `basestation decode` reads).
+//! radio bytes every node sent (`/radio`, JSON, which `basestation decode` reads), and
+//! where areas are swept the ground swept so far (`/coverage`, a grid every 30 s).
 //! Timestamps are the simulated clock (nanoseconds from the run's start). Written while
 //! the run goes on ([`Recording`]: `sim` hands it what is new every few simulated seconds;
 //! encoding and compression run on a thread of its own) or after it ([`write_mcap`]),
@@ -14,8 +15,9 @@ use std::path::Path;
 use std::sync::{mpsc, Arc};
 
 use foxglove::messages::{
-    CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms, Log, PoseInFrame,
-    SceneEntity, SceneUpdate, Vector3,
+    packed_element_field::NumericType, CubePrimitive, CylinderPrimitive, FrameTransform,
+    FrameTransforms, Grid, Log, PackedElementField, Pose, PoseInFrame, Quaternion, SceneEntity,
+    SceneUpdate, Vector2, Vector3,
 };
 use foxglove::{Channel, Context, McapWriteOptions, McapWriter, RawChannel};
 
@@ -93,6 +95,52 @@ struct Batch {
     links: Vec<(u64, Vec<(u16, LinkHealth)>)>,
     sensed: Vec<(u64, Vec<Obstacle>)>,
     events: Vec<(String, Option<u16>, f64)>,
+    /// The ground swept so far (`/coverage`), when a snapshot is due.
+    coverage: Option<(u64, Grid)>,
+}
+
+/// The coverage layer is snapshot at most this often, µs of simulated time (an image of
+/// the whole grid each: a 1,200 m² plaza is 480 kB before compression).
+const COVERAGE_EVERY_US: u64 = 30_000_000;
+/// The coverage layer's topic.
+pub const COVERAGE_TOPIC: &str = "/coverage";
+
+/// The ground swept as a Foxglove grid (RGBA cells in the site frame), if the run sweeps.
+fn coverage_grid(world: &World) -> Option<Grid> {
+    let grid = world.recorder.sweeping.as_ref()?.grid();
+    let (origin, nx, _) = grid.shape();
+    let cell = base_station::coverage::grid::CELL;
+    let channel = |name: &str, offset: u32| PackedElementField {
+        name: name.into(),
+        offset,
+        r#type: NumericType::Uint8 as i32,
+    };
+    Some(Grid {
+        timestamp: stamp(world.t_us * 1000),
+        frame_id: FRAME.into(),
+        pose: Some(Pose {
+            position: Some(Vector3 {
+                x: origin.x,
+                y: origin.y,
+                z: -0.01,
+            }),
+            orientation: Some(Quaternion {
+                w: 1.0,
+                ..Default::default()
+            }),
+        }),
+        column_count: nx as u32,
+        cell_size: Some(Vector2 { x: cell, y: cell }),
+        row_stride: 4 * nx as u32,
+        cell_stride: 4,
+        fields: vec![
+            channel("red", 0),
+            channel("green", 1),
+            channel("blue", 2),
+            channel("alpha", 3),
+        ],
+        data: grid.rgba().into(),
+    })
 }
 
 /// Transmissions handed over at once, their bytes in one buffer: allocated by the
@@ -128,6 +176,8 @@ struct Fed {
     routes: usize,
     links: usize,
     sensed: usize,
+    /// When the last coverage snapshot was taken, µs.
+    coverage_us: Option<u64>,
 }
 
 impl Fed {
@@ -138,6 +188,7 @@ impl Fed {
             routes: world.routes.len(),
             links: world.links.len(),
             sensed: world.sensed.len(),
+            coverage_us: None,
         }
     }
 }
@@ -220,7 +271,16 @@ impl Recording {
             links: world.links[fed.links..].to_vec(),
             sensed: world.sensed[fed.sensed..].to_vec(),
             events: Vec::new(),
+            coverage: None,
         };
+        let due = fed
+            .coverage_us
+            .is_none_or(|t| world.t_us.saturating_sub(t) >= COVERAGE_EVERY_US);
+        let mut coverage_us = fed.coverage_us;
+        if due {
+            batch.coverage = coverage_grid(world).map(|g| (world.t_us * 1000, g));
+            coverage_us = Some(world.t_us);
+        }
         for (t_us, from, bytes) in new {
             batch.radio.bytes.extend_from_slice(bytes);
             batch
@@ -228,7 +288,10 @@ impl Recording {
                 .sent
                 .push((*t_us, *from, batch.radio.bytes.len()));
         }
-        self.fed = Fed::all(world);
+        self.fed = Fed {
+            coverage_us,
+            ..Fed::all(world)
+        };
         batch
     }
 
@@ -248,6 +311,8 @@ impl Recording {
     /// Hands over the rest and the station's events, and waits for the file to be
     /// written; returns how many messages each topic got.
     pub fn finish(mut self, world: &World, report: &Report) -> Result<Counts, String> {
+        // The last snapshot is the run's end, whenever the one before was taken.
+        self.fed.coverage_us = None;
         let mut batch = self.batch(world);
         batch.events = report
             .station_events
@@ -300,6 +365,7 @@ struct Writer {
     tracks: Channel<SceneUpdate>,
     sensed: Channel<SceneUpdate>,
     events: Channel<Log>,
+    coverage: Channel<Grid>,
     radio: Arc<RawChannel>,
     senders: Vec<String>,
     counts: Counts,
@@ -365,6 +431,7 @@ impl Writer {
             shapes: ctx.channel_builder("/formation").build::<FormationShape>(),
             shape: "",
             events: events_channel(ctx),
+            coverage: ctx.channel_builder(COVERAGE_TOPIC).build::<Grid>(),
             radio: radio_channel(ctx)?,
             senders: sender_names(world),
             counts: Counts::new(),
@@ -402,6 +469,10 @@ impl Writer {
                     count(&mut self.counts, ch.topic(), 1);
                 }
             }
+        }
+        if let Some((t, grid)) = batch.coverage {
+            self.coverage.log_with_time(&grid, t);
+            self.count(COVERAGE_TOPIC);
         }
         for (event, robot, at_s) in batch.events {
             log_event(&self.events, &event, robot, nanos(at_s));

@@ -62,7 +62,7 @@ fn paper_passage_over(transport: &str) {
         .iter()
         .map(|(t, (_, data, _))| (t.clone(), data.clone()))
         .collect();
-    common::assert_layout_fits(&schemas, &["/movers", "/tracks", "/sensed"]);
+    common::assert_layout_fits(&schemas, &["/movers", "/tracks", "/sensed", "/coverage"]);
 
     let r = json(&report);
     assert_eq!(r["goal_reached"], true, "{r}");

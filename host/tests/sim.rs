@@ -178,7 +178,7 @@ fn basestation_sim_writes_report_and_figure() {
     assert!(lines.iter().all(|l| l["t_s"].as_f64().is_some()));
 
     // A run without movers records none.
-    common::assert_layout_fits(&schemas, &["/movers", "/tracks", "/sensed"]);
+    common::assert_layout_fits(&schemas, &["/movers", "/tracks", "/sensed", "/coverage"]);
 }
 
 #[test]
@@ -278,7 +278,7 @@ fn street_crossing_reports_and_records_the_movers() {
         "no mark drawn"
     );
     // The shipped layout shows them.
-    common::assert_layout_fits(&schemas, &[]);
+    common::assert_layout_fits(&schemas, &["/coverage"]);
     // `--layout`: every topic its plots name is a channel of this recording.
     let layout: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&layout).unwrap()).unwrap();
@@ -467,4 +467,41 @@ fn every_ending_says_why() {
     let (out, _) = common::sim_into(&dir, "street-crossing", &[]);
     let summary = String::from_utf8_lossy(&out.stdout);
     assert!(!summary.contains("paper"), "{summary}");
+}
+
+/// A sweep: the report's coverage, the figure's swept ground, and the recording's coverage
+/// layer filling in (a Foxglove grid every 30 s and at the end), in the layout's 3D panel.
+#[test]
+fn a_sweep_reports_draws_and_records_its_coverage() {
+    let dir = common::scratch("sweep");
+    let (out, report) = common::sim_into(&dir, "street-block-sweep", &[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
+    assert_eq!(r["schema_version"], 5);
+    let c = &r["coverage"];
+    let swept = c["swept_fraction"].as_f64().unwrap();
+    assert!(swept > 0.5 && swept <= 1.0, "{c}");
+    assert!(c["missed_patches"].as_u64().unwrap() >= c["missed"].as_array().unwrap().len() as u64);
+    let svg = std::fs::read_to_string(dir.join("figure.svg")).unwrap();
+    for label in ["swept twice or more", "missed"] {
+        assert!(svg.contains(label), "the figure's legend lacks {label}");
+    }
+    let count = common::channels(&dir.join("run.mcap"));
+    let (schema, _, n) = &count["/coverage"];
+    assert_eq!(schema, "foxglove.Grid");
+    let minutes = r["sim_time_s"].as_f64().unwrap() / 60.0;
+    assert!(
+        *n as f64 >= minutes,
+        "{n} coverage snapshots over {minutes:.0} min"
+    );
+    let schemas: std::collections::BTreeMap<String, Vec<u8>> = count
+        .iter()
+        .map(|(t, (_, s, _))| (t.clone(), s.clone()))
+        .collect();
+    common::assert_layout_fits(&schemas, &["/movers", "/tracks", "/sensed"]);
 }

@@ -227,6 +227,26 @@ impl Coverage {
         out
     }
 
+    /// The grid's lower-left corner and its cells along x and y.
+    pub fn shape(&self) -> (DVec2, usize, usize) {
+        (self.origin, self.nx, self.ny)
+    }
+
+    /// The grid as an image, row by row from the lower-left, 4 bytes (red, green, blue,
+    /// alpha) a cell: swept once pale green, twice or more green, missed pale red, what is
+    /// not asked for clear.
+    pub fn rgba(&self) -> Vec<u8> {
+        self.cells
+            .iter()
+            .flat_map(|c| match (c.area, c.sweeps) {
+                (0, _) => [0, 0, 0, 0],
+                (_, 0) => [250, 160, 160, 200],
+                (_, 1) => [170, 225, 170, 200],
+                _ => [90, 180, 90, 200],
+            })
+            .collect()
+    }
+
     /// What was swept, and the patches missed.
     pub fn summary(&self) -> Swept {
         let area = CELL * CELL;
