@@ -202,8 +202,11 @@ pub fn progress_words(p: &base_station::station::Progress) -> String {
     let eta = p
         .eta_s
         .map_or(String::new(), |s| format!(" · about {s:.0} s"));
+    let swept = p
+        .swept
+        .map_or(String::new(), |s| format!("swept {:.0} % · ", 100.0 * s));
     format!(
-        "{:.0} % · {:.1} m to go · waypoint {} of {}{eta}",
+        "{swept}{:.0} % · {:.1} m to go · waypoint {} of {}{eta}",
         100.0 * p.share,
         p.left_m,
         p.waypoint,

@@ -38,6 +38,9 @@ pub struct Coverage {
     ny: usize,
     cells: Vec<Cell>,
     brush: f64,
+    /// Cells to sweep, and of them swept.
+    to_sweep: usize,
+    swept: usize,
 }
 
 /// A patch the brushes missed: its cells' bounds and area.
@@ -125,12 +128,15 @@ impl Coverage {
                 cell.area = (a + 1).min(255) as u8;
             }
         }
+        let to_sweep = cells.iter().filter(|c| c.area > 0).count();
         Self {
             origin: lo,
             nx,
             ny,
             cells,
             brush,
+            to_sweep,
+            swept: 0,
         }
     }
 
@@ -179,6 +185,9 @@ impl Coverage {
         if c.area == 0 {
             return;
         }
+        if c.sweeps == 0 {
+            self.swept += 1;
+        }
         let again = c.sweeps == 0 || c.last_robot != robot || t_s - c.last_s as f64 > AGAIN_S;
         if again {
             c.sweeps = c.sweeps.saturating_add(1);
@@ -225,6 +234,15 @@ impl Coverage {
             }
         }
         out
+    }
+
+    /// The share of the ground to sweep swept so far (1 with nothing to sweep).
+    pub fn swept_fraction(&self) -> f64 {
+        if self.to_sweep == 0 {
+            1.0
+        } else {
+            self.swept as f64 / self.to_sweep as f64
+        }
     }
 
     /// The grid's lower-left corner and its cells along x and y.
@@ -385,6 +403,7 @@ mod tests {
         );
         let s = c.summary();
         assert!((s.swept_m2 - 10.0).abs() < 1.1, "{}", s.swept_m2);
+        assert!((c.swept_fraction() - s.swept_fraction).abs() < 1e-12);
         assert_eq!(s.swept_twice_m2, 0.0);
         // The same brush dwelling is not a second sweep; another robot is.
         c.sweep(

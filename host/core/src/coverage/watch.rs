@@ -199,6 +199,11 @@ impl SweepWatch {
         Some(end - passed)
     }
 
+    /// The share of the areas swept, as the station estimates its robots' brushes.
+    pub fn swept_fraction(&self) -> f64 {
+        self.grid.swept_fraction()
+    }
+
     /// The station's estimate of the ground swept.
     pub fn grid(&self) -> &Coverage {
         &self.grid

@@ -19,6 +19,9 @@ pub struct Progress {
     pub waypoints: usize,
     /// At its average speed so far, when it arrives, s from now (null: too early to say).
     pub eta_s: Option<f64>,
+    /// With areas to sweep: their share swept so far, as the station estimates its
+    /// robots' brushes, 0–1.
+    pub swept: Option<f64>,
 }
 
 /// The average speed is not told before the leader has driven this far, m.
@@ -128,6 +131,7 @@ impl BaseStation {
             eta_s: speed
                 .filter(|v| done_m >= ETA_AFTER_M && *v > 0.0)
                 .map(|v| left_m / v),
+            swept: self.sweeping().map(|w| w.swept_fraction()),
         })
     }
 
@@ -226,6 +230,7 @@ mod tests {
             waypoint: 2,
             waypoints: 3,
             eta_s: Some(25.0),
+            swept: None,
         };
         let cases = [
             (
