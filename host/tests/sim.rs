@@ -33,7 +33,11 @@ fn basestation_sim_writes_report_and_figure() {
     ] {
         assert!(r.get(key).is_some(), "report lacks {key}");
     }
-    assert_eq!(r["schema_version"], 4);
+    assert_eq!(r["schema_version"], 5);
+    assert!(
+        r.get("coverage").is_none(),
+        "no areas to sweep, no coverage"
+    );
     assert_eq!(r["seed"], 3);
     assert_eq!(r["firmware"], "native");
     for key in ["frames_sent", "frames_delivered", "frames_rejected"] {
