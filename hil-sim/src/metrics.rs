@@ -422,6 +422,30 @@ impl Recorder {
         }
     }
 
+    /// The brushes after a physics step, when the run sweeps.
+    fn observe_sweep<R: Tracked>(
+        &mut self,
+        t_us: u64,
+        dt: f64,
+        robots: &[R],
+        movers: &[MoverState],
+    ) {
+        let Some(sweeping) = &mut self.sweeping else {
+            return;
+        };
+        let brushes = robots.iter().map(|r| {
+            let b = r.body();
+            crate::swept::Brush {
+                id: r.id(),
+                leads: r.role() == Role::Leader,
+                position: DVec2::new(b.x, b.y),
+                heading: b.heading,
+                v: b.twist().0,
+            }
+        });
+        sweeping.observe(t_us as f64 / 1e6, dt, brushes, movers);
+    }
+
     /// Called after every physics step. `map`: everything a robot can touch, besides the
     /// `movers`.
     pub fn observe<R: Tracked>(
@@ -436,9 +460,7 @@ impl Recorder {
             .last_us
             .map_or(0.0, |l| t_us.saturating_sub(l) as f64 / 1e6);
         self.last_us = Some(t_us);
-        if let Some(sweeping) = &mut self.sweeping {
-            sweeping.observe(t_us as f64 / 1e6, dt, robots, movers);
-        }
+        self.observe_sweep(t_us, dt, robots, movers);
         if !movers.is_empty() {
             let bodies: Vec<RobotNow> = robots
                 .iter()

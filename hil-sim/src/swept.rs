@@ -10,12 +10,22 @@
 use base_station::coverage::brush_down;
 use base_station::coverage::grid::{Coverage, Swept};
 use base_station::geometry::map::Map;
-use base_station::scenario::{Role, Scenario};
+use base_station::scenario::Scenario;
 use glam::DVec2;
 use serde::Serialize;
 
-use crate::metrics::Tracked;
 use crate::movers::MoverState;
+
+/// A robot after a physics step, as the sweep needs it.
+#[derive(Debug, Clone, Copy)]
+pub struct Brush {
+    pub id: u16,
+    pub leads: bool,
+    pub position: DVec2,
+    pub heading: f64,
+    /// Forward speed, m/s.
+    pub v: f64,
+}
 
 /// The leader slower than this stands, m/s.
 const STANDING: f64 = 0.05;
@@ -74,10 +84,15 @@ impl Sweeping {
     }
 
     /// After a physics step of `dt` s ending at `t_s`.
-    pub fn observe<R: Tracked>(&mut self, t_s: f64, dt: f64, robots: &[R], movers: &[MoverState]) {
-        for (i, r) in robots.iter().enumerate() {
-            let b = r.body();
-            let now = (DVec2::new(b.x, b.y), b.heading);
+    pub fn observe(
+        &mut self,
+        t_s: f64,
+        dt: f64,
+        robots: impl Iterator<Item = Brush>,
+        movers: &[MoverState],
+    ) {
+        for (i, r) in robots.enumerate() {
+            let now = (r.position, r.heading);
             let before = self.last.get_mut(i).and_then(|l| l.replace(now));
             if !brush_down(&self.grid, &self.directions, now.0, now.1) {
                 continue;
@@ -85,13 +100,13 @@ impl Sweeping {
             self.first_down_s.get_or_insert(t_s);
             self.last_down_s = t_s;
             let from = before.unwrap_or(now);
-            self.grid.sweep(r.id(), from, now, t_s);
-            if r.role() == Role::Leader {
+            self.grid.sweep(r.id, from, now, t_s);
+            if r.leads {
                 self.distance_m += (now.0 - from.0).length();
                 let near = movers
                     .iter()
                     .any(|m| m.position.distance(now.0) - self.footprint < STANDING_FOR_WITHIN);
-                if near && b.twist().0.abs() < STANDING {
+                if near && r.v.abs() < STANDING {
                     self.stood_for_people_s += dt;
                 }
             }
