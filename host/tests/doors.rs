@@ -164,6 +164,14 @@ fn a_flood_of_forged_fixes_moves_no_robot() {
     assert!(timing["late_p99_ms"].as_f64().unwrap() < 20.0, "{timing}");
 }
 
+/// The console's `host:port` and pairing code from the URL the run prints.
+fn host_and_code(url: &str) -> (String, String) {
+    url.strip_prefix("http://")
+        .and_then(|u| u.split_once("/#pair="))
+        .map(|(h, c)| (h.to_string(), c.to_string()))
+        .unwrap_or_else(|| panic!("not a console URL: {url}"))
+}
+
 /// One raw HTTP request on a fresh connection to `addr`: the status (0 when none came)
 /// and how long the answer took.
 fn http_status(addr: &str, request: &str) -> (u16, Duration) {
@@ -223,12 +231,7 @@ fn the_console_survives_floods_of_connections_headers_and_stalled_bodies() {
             run_report.to_str().unwrap(),
         ],
     );
-    let url = run.console_url();
-    let (host, code) = url
-        .strip_prefix("http://")
-        .and_then(|u| u.split_once("/#pair="))
-        .map(|(h, c)| (h.to_string(), c.to_string()))
-        .unwrap();
+    let (host, code) = host_and_code(&run.console_url());
     let stop = Arc::new(AtomicBool::new(false));
     let mut attackers = Vec::new();
     // 600 connections held open, the oldest dropped for a new one.
@@ -490,12 +493,7 @@ fn the_operator_is_served_under_connection_churn() {
     let (mut robots, _report, _trace) = robots_over_udp(&site, scenario, &[]);
     let at = robots.address();
     let mut run = run_over_udp(&site, scenario, &at, &["--console", "127.0.0.1:0"]);
-    let url = run.console_url();
-    let (host, code) = url
-        .strip_prefix("http://")
-        .and_then(|u| u.split_once("/#pair="))
-        .map(|(h, c)| (h.to_string(), c.to_string()))
-        .unwrap();
+    let (host, code) = host_and_code(&run.console_url());
     let cookie = paired_cookie(&host, &code);
     let target: std::net::SocketAddrV4 = host.parse().unwrap();
     let mut page = std::net::TcpStream::connect(&host).unwrap();

@@ -127,7 +127,7 @@ fn bins(r: &mut impl Rng, area: &[DVec2], count: usize, apart: f64) -> Vec<(DVec
             break;
         }
         let c = DVec2::new(r.random_range(lo.x..hi.x), r.random_range(lo.y..hi.y));
-        let inside = base_station::coverage::grid::inside(c, area);
+        let inside = base_station::geometry::point_in_polygon(c, area);
         let margin = area.iter().zip(area.iter().cycle().skip(1)).all(|(a, b)| {
             let t = ((c - *a).dot(*b - *a) / (*b - *a).length_squared()).clamp(0.0, 1.0);
             c.distance(*a + (*b - *a) * t) > 1.5

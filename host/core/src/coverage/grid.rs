@@ -10,6 +10,7 @@ use glam::DVec2;
 use serde::Serialize;
 
 use crate::geometry::map::Map;
+use crate::geometry::point_in_polygon;
 
 /// The grid's cell, m.
 pub const CELL: f64 = 0.1;
@@ -69,24 +70,10 @@ pub struct Swept {
     pub missed_patches: usize,
 }
 
-/// Whether `p` is inside `polygon` (even-odd).
-pub fn inside(p: DVec2, polygon: &[DVec2]) -> bool {
-    let mut inside = false;
-    let mut j = polygon.len() - 1;
-    for i in 0..polygon.len() {
-        let (a, b) = (polygon[i], polygon[j]);
-        if (a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x {
-            inside = !inside;
-        }
-        j = i;
-    }
-    inside
-}
-
 /// Whether `p` is inside `polygon` or within `within` of its outline.
 fn near_or_in(p: DVec2, polygon: &[DVec2], within: f64) -> bool {
     let n = polygon.len();
-    inside(p, polygon)
+    point_in_polygon(p, polygon)
         || (0..n).any(|i| {
             let q = crate::geometry::closest_on_segment(p, polygon[i], polygon[(i + 1) % n]);
             q.distance(p) <= within
@@ -120,7 +107,7 @@ impl Coverage {
                 .iter()
                 .position(|poly| near_or_in(c, poly, 0.5 * brush))
                 .map_or(0, |a| (a + 1).min(255) as u8);
-            let Some(a) = areas.iter().position(|poly| inside(c, poly)) else {
+            let Some(a) = areas.iter().position(|poly| point_in_polygon(c, poly)) else {
                 continue;
             };
             let clear = map.clearance(c, reach.max(0.0) + CELL);

@@ -72,7 +72,8 @@ fn unit_or(v: DVec2, fallback: DVec2) -> DVec2 {
     }
 }
 
-fn point_in_polygon(p: DVec2, pts: &[DVec2]) -> bool {
+/// Whether `p` is inside the polygon `pts` (even-odd).
+pub fn point_in_polygon(p: DVec2, pts: &[DVec2]) -> bool {
     let mut inside = false;
     let mut j = pts.len() - 1;
     for i in 0..pts.len() {
