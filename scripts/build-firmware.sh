@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the robot firmware for every board, each in its own target directory (two boards
 # under one profile would overwrite one ELF with the other), records flash and static RAM
-# in firmware/mcu/size-<board>.txt, and fails above the budget (32 KiB flash, 8 KiB RAM).
+# in firmware/mcu/size-<board>.txt, and fails above the budget (64 KiB flash, 16 KiB RAM).
 set -euo pipefail
 cd "$(dirname "$0")/../firmware/mcu"
 # Panic locations carry the absolute paths of the path dependencies (firmware/core,
@@ -19,8 +19,8 @@ if [ -z "$size_tool" ]; then
     exit 1
 fi
 
-FLASH_LIMIT=$((32 * 1024))
-RAM_LIMIT=$((8 * 1024))
+FLASH_LIMIT=$((64 * 1024))
+RAM_LIMIT=$((16 * 1024))
 status=0
 for board in ${BOARDS:-qemu nucleo}; do
     echo "==> firmware, board $board"
@@ -36,7 +36,7 @@ for board in ${BOARDS:-qemu nucleo}; do
         $1 ~ /^\.(bss|uninit)$/ { r += $2 }
         END { print f, r }')
     {
-        echo "# sweeper-firmware, board-$board, release (opt-level z, fat LTO, DEFMT_LOG=${DEFMT_LOG:-info})"
+        echo "# sweeper-firmware, board-$board, release (opt-level s, fat LTO, DEFMT_LOG=${DEFMT_LOG:-info})"
         echo "# scripts/build-firmware.sh; budget $FLASH_LIMIT flash / $RAM_LIMIT static RAM"
         echo "flash_bytes $flash"
         echo "static_ram_bytes $ram"

@@ -67,6 +67,9 @@ pub struct QemuBrain {
     step_cycles: Vec<u32>,
     /// SysTick counts spent receiving radio frames, per control period.
     rx_cycles: Vec<u32>,
+    /// Receive counts of the steps since the last control step (a frame may arrive
+    /// between two ticks).
+    rx_pending: u32,
     timeout: Duration,
 }
 
@@ -256,6 +259,7 @@ impl QemuBrain {
             rejects: RejectCounts::default(),
             step_cycles: Vec::new(),
             rx_cycles: Vec::new(),
+            rx_pending: 0,
             timeout,
         };
         let config = ToMcu::Config(config);
@@ -411,9 +415,10 @@ impl Brain for QemuBrain {
         if !done.duty.iter().all(|d| d.is_finite()) {
             return Err(self.failure("sent a non-finite motor duty"));
         }
+        self.rx_pending = self.rx_pending.saturating_add(done.rx_cycles);
         if done.ticked {
             self.step_cycles.push(done.step_cycles);
-            self.rx_cycles.push(done.rx_cycles);
+            self.rx_cycles.push(std::mem::take(&mut self.rx_pending));
         }
         Ok(done.ticked.then_some(MotorOutput { duty: done.duty }))
     }

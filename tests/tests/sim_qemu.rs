@@ -112,6 +112,37 @@ fn paper_obstacles_in_qemu() {
     assert_paper_bounds(&assert_identical(shipped("paper-obstacles"), 1));
 }
 
+/// Median SysTick counts of `cycles` as instructions (`-icount shift=5`: 32 ns per
+/// instruction; SysTick at 25 MHz, 40 ns).
+fn median_instructions(mut cycles: Vec<u32>) -> f64 {
+    assert!(!cycles.is_empty(), "measured");
+    cycles.sort_unstable();
+    cycles[cycles.len() / 2] as f64 * 40.0 / 32.0
+}
+
+/// The firmware's cost per period, counted in instructions (which no machine load
+/// changes): a fall in the QEMU runs' speed shows here first. Today (opt-level "s",
+/// BLAKE2s unrolled): a follower's step 9,344, its leader-state frame 6,055, the
+/// leader's two frames 11,440 (docs/firmware.md#speed-and-cost); bounds 20 % above.
+#[test]
+fn the_firmware_keeps_its_instruction_budget() {
+    let (_, world) = simulate(shipped("paper-obstacles"), qemu(1)).expect("QEMU run");
+    for r in &world.robots {
+        let step = median_instructions(r.brain.step_cycles());
+        let rx = median_instructions(r.brain.rx_cycles());
+        let (step_max, rx_max) = match r.role {
+            base_station::scenario::Role::Leader => (9_500.0, 13_700.0),
+            base_station::scenario::Role::Follower => (11_200.0, 7_300.0),
+        };
+        assert!(
+            step <= step_max && rx <= rx_max,
+            "robot {}: a control step takes {step:.0} instructions (at most {step_max}), \
+             receiving a period's frames {rx:.0} (at most {rx_max})",
+            r.id
+        );
+    }
+}
+
 #[test]
 fn paper_passage_in_qemu() {
     assert_paper_bounds(&assert_identical(shipped("paper-passage"), 1));
