@@ -6,7 +6,8 @@
 //! robot's speed, the closing speed and the robot's energy), floors
 //! `min_person_clearance_m` at 0 (the overlap is `deepest_person_overlap_m`), adds
 //! `min_vehicle_clearance_m`, and leaves the tracking errors null where nothing was
-//! detected. 5 adds `coverage` where the scenario has areas to sweep.
+//! detected. 5 adds `coverage` where the scenario has areas to sweep. 6 adds
+//! `link.channel`: the channel's use and losses, each robot's delivery and leader-state age.
 
 use std::collections::BTreeMap;
 
@@ -18,7 +19,7 @@ use serde::Serialize;
 
 use crate::metrics::{Recorder, Sample, SAMPLE_PERIOD_US};
 
-pub const SCHEMA_VERSION: u32 = 5;
+pub const SCHEMA_VERSION: u32 = 6;
 
 /// A follower has joined at its first sample under this error, m.
 pub const JOINED_BELOW_M: f64 = 0.1;
@@ -77,6 +78,59 @@ pub struct LinkReport {
     pub frames_rejected: u64,
     /// Rejected frames by reason, over every receiver.
     pub rejects_by_reason: BTreeMap<String, u64>,
+    /// The channel: its use, its losses, each robot's delivery and leader-state age
+    /// (schema 6).
+    pub channel: ChannelReport,
+}
+
+/// The radio channel over the run (schema 6).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ChannelReport {
+    /// The `[link] radio` preset, or `own_air` (each transmitter has air of its own).
+    pub radio: String,
+    /// `csma`, `aloha` or `scheduled`; null with `own_air`.
+    pub access: Option<String>,
+    /// Share of the run with at least one frame on the air.
+    pub utilisation: f64,
+    pub frames_on_air: u64,
+    /// Frame copies lost at a receiver to another frame on the air at the same time.
+    pub collisions: u64,
+    /// Copies a receiver missed because it was sending.
+    pub half_duplex_losses: u64,
+    /// Frames a full modem queue (8 frames) pushed out.
+    pub queue_drops: u64,
+    /// Frames longer than any slot their sender has.
+    pub unsendable: u64,
+    /// With `scheduled` access.
+    pub schedule: Option<ScheduleReport>,
+    pub robots: Vec<RobotLinkReport>,
+}
+
+/// The base station's schedule of the channel (schema 6).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ScheduleReport {
+    pub period_ms: f64,
+    pub downlink_ms: f64,
+    pub slot_ms: f64,
+    pub uplink_slots_per_period: u64,
+    /// Periods between two slots of a follower (the leader has one every period).
+    pub follower_every_periods: Option<u64>,
+}
+
+/// One robot's link over the run (schema 6).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct RobotLinkReport {
+    pub id: u16,
+    /// Delivered share of the frame copies it sent to the station.
+    pub uplink_delivery: Option<f64>,
+    /// Delivered share of the frame copies addressed to it (broadcasts included).
+    pub downlink_delivery: Option<f64>,
+    /// Age of the leader-state frames that reached it, from the station handing each to
+    /// its radio, ms.
+    pub leader_state_age_ms_p50: Option<f64>,
+    pub leader_state_age_ms_p99: Option<f64>,
+    /// The longest time between two leader states reaching it, ms.
+    pub leader_state_gap_ms_max: Option<f64>,
 }
 
 /// Something the base station noticed, for the report.
@@ -348,7 +402,7 @@ fn max(values: impl Iterator<Item = f64>) -> Option<f64> {
 }
 
 /// The `q` quantile (nearest rank) of `values`.
-fn quantile(mut values: Vec<f64>, q: f64) -> Option<f64> {
+pub(crate) fn quantile(mut values: Vec<f64>, q: f64) -> Option<f64> {
     if values.is_empty() {
         return None;
     }

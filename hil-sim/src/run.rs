@@ -3,12 +3,16 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
+use base_station::scenario::radio::Access;
 use base_station::scenario::Scenario;
 use base_station::station::MoverPolicy;
 use protocol::{Reject, RejectCounts};
 
 use crate::brain::BrainError;
-use crate::report::{self, LinkReport, Report, RunFacts, StationEventReport};
+use crate::report::{
+    self, quantile, ChannelReport, LinkReport, Report, RobotLinkReport, RunFacts, ScheduleReport,
+    StationEventReport,
+};
 use crate::world::{SimOptions, World};
 
 /// Runs a scenario; returns the report and the finished world (for the figure).
@@ -68,6 +72,7 @@ pub fn report_of(world: &World, wall_time_s: f64) -> Report {
         frames_delivered: world.radio.stats.frames_delivered,
         frames_rejected: total,
         rejects_by_reason: by_reason(&rejects),
+        channel: channel_report(world),
     };
     let s = &world.scenario;
     let transformations = report::transformations(
@@ -133,4 +138,66 @@ fn by_reason(counts: &RejectCounts) -> BTreeMap<String, u64> {
         .filter(|r| counts.get(**r) > 0)
         .map(|r| (r.name().to_string(), counts.get(*r) as u64))
         .collect()
+}
+
+/// The channel over the run: its use and losses, and per robot the delivered shares and
+/// the leader state's age.
+fn channel_report(world: &World) -> ChannelReport {
+    let radio = &world.radio;
+    let stats = radio.channel_stats();
+    let channel = world.scenario.link.channel().ok().flatten();
+    let ms = |us: u64| us as f64 / 1000.0;
+    let schedule = radio
+        .medium()
+        .filter(|_| channel.is_some_and(|c| c.access == Access::Scheduled))
+        .map(|m| {
+            let s = m.schedule();
+            ScheduleReport {
+                period_ms: ms(base_station::air::PERIOD_US),
+                downlink_ms: ms(s.down_us),
+                slot_ms: ms(s.slot_us),
+                uplink_slots_per_period: s.slots,
+                follower_every_periods: Some(s.cycle_periods()).filter(|c| *c != u64::MAX),
+            }
+        });
+    let share = |(sent, got): (u64, u64)| (sent > 0).then(|| got as f64 / sent as f64);
+    let links = radio.links();
+    let robots = world
+        .robots
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let node = i + 1;
+            let down = links
+                .iter()
+                .filter(|((from, to), _)| *to == node && *from == 0)
+                .fold((0, 0), |a, (_, (s, d))| (a.0 + s, a.1 + d));
+            let (ages, gap) = world.leader_state_ages.of(node);
+            let ages: Vec<f64> = ages.iter().map(|a| ms(*a)).collect();
+            RobotLinkReport {
+                id: r.id,
+                uplink_delivery: links.get(&(node, 0)).copied().and_then(share),
+                downlink_delivery: share(down),
+                leader_state_age_ms_p50: quantile(ages.clone(), 0.5),
+                leader_state_age_ms_p99: quantile(ages, 0.99),
+                leader_state_gap_ms_max: (gap > 0).then(|| ms(gap)),
+            }
+        })
+        .collect();
+    ChannelReport {
+        radio: channel.map_or("own_air".into(), |c| c.preset.name.into()),
+        access: channel.map(|c| c.access.name().into()),
+        utilisation: if world.t_us > 0 {
+            stats.busy_us as f64 / world.t_us as f64
+        } else {
+            0.0
+        },
+        frames_on_air: stats.frames_on_air,
+        collisions: stats.collisions,
+        half_duplex_losses: stats.half_duplex,
+        queue_drops: stats.queue_drops,
+        unsendable: stats.unsendable,
+        schedule,
+        robots,
+    }
 }

@@ -28,7 +28,8 @@ use crate::metrics::{FleetView, Recorder, StationView, Tracked};
 use crate::movers::{MoverState, Movers, RobotBody};
 use crate::observer::AirObserver;
 use crate::plant::{Body, BodyParams};
-use crate::radio::{NodeId, Radio, RadioParams};
+use crate::radio::ages::LeaderStateAges;
+use crate::radio::{Medium, NodeId, Radio, RadioParams};
 use crate::ring;
 use crate::scanner::Scanner;
 
@@ -216,6 +217,8 @@ pub struct World {
     pub map: Map,
     pub station: BaseStation,
     pub radio: Radio,
+    /// The leader state's age at each robot it reached.
+    pub leader_state_ages: LeaderStateAges,
     pub robots: Vec<SimRobot>,
     node_of: HashMap<u16, NodeId>,
     loc_rng: ChaCha8Rng,
@@ -323,6 +326,7 @@ impl World {
             mover_states,
             map,
             station,
+            leader_state_ages: LeaderStateAges::new(robots.len()),
             radio,
             robots,
             node_of,
@@ -336,21 +340,29 @@ impl World {
         })
     }
 
-    /// The simulated radio with the scenario's `[link]`, seeded from `master`.
+    /// The simulated radio with the scenario's `[link]`, seeded from `master`: air of its
+    /// own for each transmitter, or one shared channel (robot `i` is node `i + 1`).
     fn radio_of(scenario: &Scenario, master: &mut ChaCha8Rng) -> Radio {
         let l = &scenario.link;
-        Radio::new(
-            RadioParams {
-                latency_s: l.latency_ms / 1000.0,
-                jitter_s: l.jitter_ms / 1000.0,
-                loss: l.loss,
-                byte_corruption: l.byte_corruption,
-                baud: l.baud,
-                reorder_s: 0.0,
-                duplicate: false,
-            },
-            ChaCha8Rng::seed_from_u64(master.random()),
-        )
+        let params = RadioParams {
+            latency_s: l.latency_ms / 1000.0,
+            jitter_s: l.jitter_ms / 1000.0,
+            loss: l.loss,
+            byte_corruption: l.byte_corruption,
+            baud: l.baud,
+            reorder_s: 0.0,
+            duplicate: false,
+        };
+        let rng = ChaCha8Rng::seed_from_u64(master.random());
+        match l.channel().expect("validated") {
+            None => Radio::new(params, rng),
+            Some(channel) => {
+                let leader = scenario.robots.iter().position(|r| r.role == Role::Leader);
+                let n = scenario.robots.len();
+                let medium = Medium::new(channel, n, leader.map(|i| i + 1), master.random());
+                Radio::shared(params, medium, rng)
+            }
+        }
     }
 
     /// The scenario's robots at their starts, each booted, its control phase drawn from
@@ -591,11 +603,12 @@ impl World {
     /// at its next step (this one, if it is booted).
     fn deliver_arrivals(&mut self) {
         let base_ms = self.base_ms();
-        for (to, bytes) in self.radio.arrivals(self.t_us) {
-            match (to, &mut self.external) {
-                (0, Some(external)) => external.inbox.extend_from_slice(&bytes),
-                (0, None) => self.station.receive(&bytes, base_ms),
-                _ => self.robots[to - 1].inbox.extend_from_slice(&bytes),
+        for a in self.radio.arrivals(self.t_us) {
+            self.leader_state_ages.note(&a, self.t_us);
+            match (a.to, &mut self.external) {
+                (0, Some(external)) => external.inbox.extend_from_slice(&a.bytes),
+                (0, None) => self.station.receive(&a.bytes, base_ms),
+                (to, _) => self.robots[to - 1].inbox.extend_from_slice(&a.bytes),
             }
         }
     }

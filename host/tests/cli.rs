@@ -33,12 +33,17 @@ fn basestation(args: &[&str], stdin: Option<&[u8]>) -> (i32, String, String) {
 const GOOD: &str = include_str!("../../scenarios/paper-obstacles.toml");
 
 fn check_text(name: &str, text: &str) -> (i32, String) {
+    let (code, _, err) = check_file(name, text);
+    (code, err)
+}
+
+/// `check` on `text` written to a file called `name`: exit code, stdout, stderr.
+fn check_file(name: &str, text: &str) -> (i32, String, String) {
     let dir = std::env::temp_dir().join(format!("basestation-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
-    let (code, _, err) = basestation(&["check", path.to_str().unwrap()], None);
-    (code, err)
+    basestation(&["check", path.to_str().unwrap()], None)
 }
 
 #[test]
@@ -114,6 +119,50 @@ fn bad_areas_to_sweep_are_refused_with_their_field() {
     ];
     for (name, text, expected) in cases {
         let (code, err) = check_text(name, &text);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(
+            err.contains(expected),
+            "{name}:\n  got: {err}\n  expected: {expected}"
+        );
+    }
+}
+
+/// A shared radio: `check` says what one frame costs on its air and the station's
+/// schedule, or that the radio cannot carry the fleet; a bad radio is refused with its
+/// field.
+#[test]
+fn check_prints_the_channel_and_refuses_a_bad_radio() {
+    let with = |link: &str| format!("{GOOD}\n[link]\n{link}\n");
+    let (code, out, err) = check_file(
+        "sik.toml",
+        &with("radio = \"sik-64k\"\naccess = \"scheduled\""),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("channel     sik-64k"), "{out}");
+    assert!(
+        out.contains("each follower reports every 1 period(s)"),
+        "{out}"
+    );
+    let (_, out, _) = check_file(
+        "lora.toml",
+        &with("radio = \"lora-sf7-125\"\naccess = \"scheduled\""),
+    );
+    assert!(out.contains("this radio cannot carry the fleet"), "{out}");
+    let cases = [
+        (
+            "wifi.toml",
+            "radio = \"wifi\"",
+            "field `link.radio`: unknown radio \"wifi\"",
+        ),
+        ("fec.toml", "fec = 2.0", "field `link.fec`: needs `radio`"),
+        (
+            "sf.toml",
+            "radio = \"lora-sf7-125\"\nspreading_factor = 13",
+            "field `link.spreading_factor`: must be 7 to 12",
+        ),
+    ];
+    for (name, link, expected) in cases {
+        let (code, err) = check_text(name, &with(link));
         assert_eq!(code, 1, "{name}: {err}");
         assert!(
             err.contains(expected),

@@ -27,6 +27,7 @@
 //!   simulator and real runs.
 //! - [`transport`]: serial modem and UDP.
 
+pub mod air;
 pub mod coverage;
 pub mod formation;
 pub mod geometry;

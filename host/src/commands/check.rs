@@ -51,6 +51,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         s.link.loss * 100.0,
         s.link.baud
     );
+    print_channel(&s);
     println!("ok");
     Ok(())
 }
@@ -146,4 +147,52 @@ fn print_movers(s: &base_station::scenario::Scenario) {
             c.start_s
         );
     }
+}
+
+/// The shared channel, where `[link] radio` names one: air per frame, the load of every
+/// robot at 10 Hz, and the station's schedule.
+fn print_channel(s: &base_station::scenario::Scenario) {
+    use base_station::air::{Air, Schedule, DOWNLINK_FRAME_BYTES, PERIOD_US, UPLINK_FRAME_BYTES};
+    use base_station::scenario::radio::Access;
+    let Ok(Some(channel)) = s.link.channel() else {
+        return;
+    };
+    let air = Air::new(channel);
+    let (down, up) = (air.us(DOWNLINK_FRAME_BYTES), air.us(UPLINK_FRAME_BYTES));
+    let n = s.robots.len() as u64;
+    // Each period: the leader state and the leader's command down, a report from each robot.
+    let load = (2 * down + n * up) as f64 / PERIOD_US as f64;
+    println!(
+        "channel     {} ({}), {}: {:.1} ms per {DOWNLINK_FRAME_BYTES} B down, {:.1} ms per \
+         {UPLINK_FRAME_BYTES} B up; every robot at 10 Hz needs {:.0} % of the air",
+        channel.preset.name,
+        channel.preset.what,
+        channel.access.name(),
+        down as f64 / 1000.0,
+        up as f64 / 1000.0,
+        load * 100.0
+    );
+    if channel.access != Access::Scheduled {
+        return;
+    }
+    let leader = s
+        .robots
+        .iter()
+        .position(|r| r.role == base_station::scenario::Role::Leader);
+    let followers = (1..=s.robots.len())
+        .filter(|i| Some(*i - 1) != leader)
+        .collect();
+    let guard = channel.preset.sense_us.ceil() as u64;
+    let schedule = Schedule::new(&air, guard, leader.map(|i| i + 1), followers);
+    let every = schedule.cycle_periods();
+    println!(
+        "schedule    downlink {:.1} ms, then {} uplink slot(s) of {:.1} ms per 100 ms; {}",
+        schedule.down_us as f64 / 1000.0,
+        schedule.slots,
+        schedule.slot_us as f64 / 1000.0,
+        match every {
+            u64::MAX => "no slot for the followers: this radio cannot carry the fleet".into(),
+            k => format!("each follower reports every {k} period(s)"),
+        }
+    );
 }

@@ -227,6 +227,41 @@ pub fn bin_field(seed: u64, bins: usize, followers: usize) -> Generated {
     b.build(&format!("bin-field-{bins}-{followers}f-seed{seed}"), true)
 }
 
+/// An open lot 60 m long with a dozen bins off a bent way, sized for the fleet: its V
+/// (any number of followers) starts at the lot's near edge however deep it is.
+pub fn open_lot(seed: u64, followers: usize) -> Generated {
+    let mut r = rng(9, seed);
+    let ranks = followers.div_ceil(2) as f64;
+    // A V's rank k sits 3k m from the leader at 150°: depth 2.6k, half-width 1.5k.
+    let (depth, half) = (2.6 * ranks + 3.0, 1.5 * ranks + 3.0);
+    let width = 30.0_f64.max(2.0 * half + 10.0);
+    let mut b = Builder::new([60.0, r.random_range(0.3..0.7) * width]);
+    b.bounds = Some(([-depth - 2.0, -2.0], [66.0, width + 2.0]));
+    let start = [2.0, width / 2.0];
+    let mid = [30.0, r.random_range(0.25..0.75) * width];
+    b.waypoints.push(mid);
+    let way = [start, mid, b.goal];
+    let near_way = |p: glam::DVec2, m: f64| {
+        way.windows(2).any(|w| {
+            let (a, c) = (glam::DVec2::from(w[0]), glam::DVec2::from(w[1]));
+            let t = ((p - a).dot(c - a) / (c - a).length_squared()).clamp(0.0, 1.0);
+            (p - (a + (c - a) * t)).length() < m
+        })
+    };
+    let mut placed = 0;
+    while placed < 12 {
+        let c = glam::DVec2::new(r.random_range(12.0..60.0), r.random_range(0.0..width));
+        // Clear of the V's whole width along the way.
+        if !near_way(c, half + 1.0) {
+            b.circle([c.x, c.y], r.random_range(0.3..0.6));
+            placed += 1;
+        }
+    }
+    b.fleet(start, 0.0, followers);
+    b.duration_s = 300.0;
+    b.build(&format!("open-lot-{followers}f-seed{seed}"), true)
+}
+
 /// A street 9–12 m wide with two or three bends and pinches down to 2.4–3.5 m.
 pub fn street(seed: u64, followers: usize) -> Generated {
     let mut r = rng(2, seed);

@@ -19,6 +19,7 @@ mod defaults;
 mod locate;
 mod lower;
 pub mod movers;
+pub mod radio;
 mod reach;
 pub mod sweep;
 mod validate;
@@ -640,7 +641,25 @@ pub struct LinkSpec {
     pub loss: f64,
     /// Probability that a byte is corrupted.
     pub byte_corruption: f64,
+    /// The serial line's rate; also the air's where no `radio` is named.
     pub baud: u32,
+    /// A shared channel: the preset (`radio::PRESETS`); without it every transmitter has
+    /// air of its own.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub radio: Option<String>,
+    pub access: radio::Access,
+    /// Overrides a fixed-rate preset's air rate, bit/s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub air_rate_bps: Option<u32>,
+    /// Overrides a fixed-rate preset's coding (coded bits per data bit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fec: Option<f64>,
+    /// Overrides the per-frame fixed overhead (preamble, turnaround), µs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_overhead_us: Option<f64>,
+    /// Overrides a LoRa preset's spreading factor (7–12).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spreading_factor: Option<u8>,
 }
 
 impl Default for LinkSpec {
@@ -651,6 +670,12 @@ impl Default for LinkSpec {
             loss: 0.05,
             byte_corruption: 0.0,
             baud: 115_200,
+            radio: None,
+            access: radio::Access::default(),
+            air_rate_bps: None,
+            fec: None,
+            frame_overhead_us: None,
+            spreading_factor: None,
         }
     }
 }

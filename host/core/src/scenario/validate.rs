@@ -585,6 +585,9 @@ impl Scenario {
         if l.baud == 0 {
             p.fail("link.baud", "must be > 0");
         }
+        if let Err((field, msg)) = l.channel() {
+            p.fail(field, &msg);
+        }
     }
 
     /// `[localization]`, and `[perception]`'s limits.

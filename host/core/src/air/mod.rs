@@ -1,0 +1,92 @@
+//! A shared channel's air: how long a frame occupies it (a fixed-rate modem's bits, or
+//! LoRa's time-on-air formula from the `lora-modulation` crate), and the base station's
+//! schedule of it.
+
+mod schedule;
+
+use lora_modulation::{Bandwidth, BaseBandModulationParams, CodingRate, SpreadingFactor};
+
+use crate::scenario::radio::{Channel, Phy};
+
+pub use schedule::Schedule;
+
+/// A node on the channel: 0 is the base station, then the robots.
+pub type NodeId = usize;
+
+/// The schedule's period: the station's 10 Hz leader-state broadcast.
+pub const PERIOD_US: u64 = 100_000;
+/// The largest uplink frame a slot is cut for (a telemetry frame is at most 38 B).
+pub const UPLINK_FRAME_BYTES: usize = 40;
+/// The downlink's frames per period: leader state, the leader's command, one more.
+pub const DOWNLINK_FRAMES: usize = 3;
+/// The largest downlink frame (a leader state is at most 31 B).
+pub const DOWNLINK_FRAME_BYTES: usize = 32;
+
+/// Air time of a frame.
+#[derive(Debug, Clone, Copy)]
+pub struct Air(Channel);
+
+impl Air {
+    pub fn new(channel: Channel) -> Self {
+        Self(channel)
+    }
+
+    pub fn channel(&self) -> &Channel {
+        &self.0
+    }
+
+    pub fn us(&self, bytes: usize) -> u64 {
+        if let Some(us) = self.0.rate_air_us(bytes) {
+            return us.ceil() as u64;
+        }
+        let Phy::Lora {
+            spreading_factor,
+            bandwidth_khz,
+            overhead_us,
+        } = self.0.phy
+        else {
+            unreachable!("a fixed-rate phy has an air time");
+        };
+        let sf = match spreading_factor {
+            7 => SpreadingFactor::_7,
+            8 => SpreadingFactor::_8,
+            9 => SpreadingFactor::_9,
+            10 => SpreadingFactor::_10,
+            11 => SpreadingFactor::_11,
+            _ => SpreadingFactor::_12,
+        };
+        let bw = match bandwidth_khz {
+            125 => Bandwidth::_125KHz,
+            250 => Bandwidth::_250KHz,
+            _ => Bandwidth::_500KHz,
+        };
+        let params = BaseBandModulationParams::new(sf, bw, CodingRate::_4_5);
+        let len = bytes.min(255) as u8;
+        u64::from(params.time_on_air_us(Some(8), true, len)) + overhead_us.ceil() as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::radio::{preset, Access};
+
+    fn channel(name: &str) -> Channel {
+        let preset = preset(name).expect("a preset");
+        Channel {
+            preset,
+            phy: preset.phy,
+            access: Access::Csma,
+        }
+    }
+
+    #[test]
+    fn lora_air_time_follows_semtechs_formula() {
+        let air = Air::new(channel("lora-sf7-125"));
+        // 32 B at SF7/125 kHz: about 72 ms (field notes), plus 1 ms of turnaround.
+        let us = air.us(32);
+        assert!((70_000..75_000).contains(&us), "{us}");
+        let fast = Air::new(channel("lora-sf7-500")).us(32);
+        assert!((17_000..21_000).contains(&fast), "{fast}");
+    }
+}

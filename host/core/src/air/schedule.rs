@@ -1,0 +1,96 @@
+//! The base station's schedule of a shared channel: the downlink opens each period (the
+//! leader-state broadcast first), then the robots' uplink slots.
+
+use super::{Air, NodeId, PERIOD_US};
+use super::{DOWNLINK_FRAMES, DOWNLINK_FRAME_BYTES, UPLINK_FRAME_BYTES};
+
+/// The base station's schedule: each period opens with the downlink, then uplink slots;
+/// the leader's is the first of every period, the followers take the others in turn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Schedule {
+    pub down_us: u64,
+    pub slot_us: u64,
+    pub guard_us: u64,
+    /// Uplink slots per period.
+    pub slots: u64,
+    pub leader: Option<NodeId>,
+    pub followers: Vec<NodeId>,
+}
+
+impl Schedule {
+    /// The downlink holds at least `DOWNLINK_FRAMES` frames; every robot has a slot each
+    /// period where they fit, else the leader has one and the followers share the rest;
+    /// what is left of the period goes to the downlink.
+    pub fn new(air: &Air, guard_us: u64, leader: Option<NodeId>, followers: Vec<NodeId>) -> Self {
+        let down_min = DOWNLINK_FRAMES as u64 * (air.us(DOWNLINK_FRAME_BYTES) + guard_us);
+        let down_min = down_min.min(PERIOD_US);
+        let slot_us = air.us(UPLINK_FRAME_BYTES) + guard_us;
+        let robots = followers.len() as u64 + u64::from(leader.is_some());
+        let slots = ((PERIOD_US - down_min) / slot_us).min(robots);
+        Self {
+            down_us: PERIOD_US - slots * slot_us,
+            slot_us,
+            guard_us,
+            slots,
+            leader,
+            followers,
+        }
+    }
+
+    /// Periods until every follower has had a slot.
+    pub fn cycle_periods(&self) -> u64 {
+        let per_period = self.slots.saturating_sub(u64::from(self.leader.is_some()));
+        match (self.followers.len() as u64, per_period) {
+            (0, _) => 1,
+            (_, 0) => u64::MAX,
+            (n, k) => n.div_ceil(k),
+        }
+    }
+
+    /// `node`'s windows in period `p`: (start, end) of each slot it owns.
+    pub fn windows(&self, node: NodeId, p: u64) -> Vec<(u64, u64)> {
+        let base = p * PERIOD_US;
+        if node == 0 {
+            return vec![(base, base + self.down_us)];
+        }
+        let first = u64::from(self.leader.is_some());
+        let per_period = self.slots.saturating_sub(first);
+        let mut out = Vec::new();
+        for s in 0..self.slots {
+            let owner = if s < first {
+                self.leader
+            } else if self.followers.is_empty() {
+                None
+            } else {
+                let g = p * per_period + (s - first);
+                Some(self.followers[(g % self.followers.len() as u64) as usize])
+            };
+            if owner == Some(node) {
+                let start = base + self.down_us + s * self.slot_us;
+                out.push((start, start + self.slot_us - self.guard_us));
+            }
+        }
+        out
+    }
+
+    /// When `node` may start a frame of `air_us` at or after `t`; `None` if no slot of
+    /// its holds such a frame.
+    pub fn next_start(&self, node: NodeId, t: u64, air_us: u64) -> Option<u64> {
+        let span = if node == 0 {
+            self.down_us
+        } else {
+            self.slot_us - self.guard_us
+        };
+        if air_us > span {
+            return None;
+        }
+        let horizon = self.cycle_periods().saturating_add(1).min(10_000);
+        let p0 = t / PERIOD_US;
+        (p0..p0 + horizon).find_map(|p| {
+            self.windows(node, p).into_iter().find_map(|(start, end)| {
+                let s = start.max(t);
+                (s + air_us <= end).then_some(s)
+            })
+        })
+    }
+}
