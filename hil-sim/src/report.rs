@@ -111,6 +111,8 @@ pub struct ChannelReport {
 pub struct ScheduleReport {
     pub period_ms: f64,
     pub downlink_ms: f64,
+    pub leader_slot_ms: f64,
+    /// A follower's slot.
     pub slot_ms: f64,
     pub uplink_slots_per_period: u64,
     /// Periods between two slots of a follower (the leader has one every period).

@@ -155,6 +155,7 @@ fn channel_report(world: &World) -> ChannelReport {
             ScheduleReport {
                 period_ms: ms(base_station::air::PERIOD_US),
                 downlink_ms: ms(s.down_us),
+                leader_slot_ms: ms(s.leader_slot_us),
                 slot_ms: ms(s.slot_us),
                 uplink_slots_per_period: s.slots,
                 follower_every_periods: Some(s.cycle_periods()).filter(|c| *c != u64::MAX),

@@ -359,7 +359,9 @@ impl World {
             Some(channel) => {
                 let leader = scenario.robots.iter().position(|r| r.role == Role::Leader);
                 let n = scenario.robots.len();
-                let medium = Medium::new(channel, n, leader.map(|i| i + 1), master.random());
+                let step_us = u64::from(scenario.sim.physics_step_ms) * 1000;
+                let leader = leader.map(|i| i + 1);
+                let medium = Medium::new(channel, n, leader, step_us, master.random());
                 Radio::shared(params, medium, rng)
             }
         }

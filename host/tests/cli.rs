@@ -139,10 +139,7 @@ fn check_prints_the_channel_and_refuses_a_bad_radio() {
     );
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("channel     sik-64k"), "{out}");
-    assert!(
-        out.contains("each follower reports every 1 period(s)"),
-        "{out}"
-    );
+    assert!(out.contains("each follower every 2 period(s)"), "{out}");
     let (_, out, _) = check_file(
         "lora.toml",
         &with("radio = \"lora-sf7-125\"\naccess = \"scheduled\""),

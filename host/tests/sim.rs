@@ -33,7 +33,8 @@ fn basestation_sim_writes_report_and_figure() {
     ] {
         assert!(r.get(key).is_some(), "report lacks {key}");
     }
-    assert_eq!(r["schema_version"], 5);
+    assert_eq!(r["schema_version"], 6);
+    assert_eq!(r["link"]["channel"]["radio"], "own_air");
     assert!(
         r.get("coverage").is_none(),
         "no areas to sweep, no coverage"
@@ -486,7 +487,7 @@ fn a_sweep_reports_draws_and_records_its_coverage() {
     );
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
-    assert_eq!(r["schema_version"], 5);
+    assert_eq!(r["schema_version"], 6);
     let c = &r["coverage"];
     let swept = c["swept_fraction"].as_f64().unwrap();
     assert!(swept > 0.5 && swept <= 1.0, "{c}");

@@ -351,8 +351,8 @@ impl<const PEERS: usize> Link<PEERS> {
     }
 
     /// The next peer that should be challenged now (unlinked, silent too long, or due a
-    /// re-synchronisation, and not challenged within [`Timing::challenge_every_ms`]), if
-    /// any.
+    /// re-synchronisation, and not challenged within [`Timing::challenge_every_ms`], twice
+    /// that for each further challenge of the last 3 s still unanswered), if any.
     pub fn due_challenge(&self, now_ms: u32) -> Option<Address> {
         let t = self.timing;
         let since_hello = |p: &Peer| p.last_hello_ms.map(|h| now_ms.wrapping_sub(h));
@@ -363,7 +363,16 @@ impl<const PEERS: usize> Link<PEERS> {
                 let resync = t
                     .resync_every_ms
                     .is_some_and(|r| since_hello(p).is_none_or(|s| s >= r));
-                let quiet = since_hello(p).is_none_or(|s| s >= t.challenge_every_ms);
+                // Each challenge still unanswered doubles the wait for the next (up to
+                // 8×): on a slow shared channel new ones would queue up behind the old,
+                // and a late answer to an old one is refused.
+                let pending = p
+                    .challenges
+                    .iter()
+                    .filter(|(_, sent)| now_ms.wrapping_sub(*sent) <= CHALLENGE_LIFETIME_MS)
+                    .count() as u32;
+                let wait = t.challenge_every_ms << pending.saturating_sub(1).min(3);
+                let quiet = since_hello(p).is_none_or(|s| s >= wait);
                 (stale || resync) && quiet
             })
             .map(|p| p.address)

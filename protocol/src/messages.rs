@@ -163,6 +163,9 @@ pub struct FormationCommand {
     pub index: u16,
     pub wide: Slot,
     pub line: Slot,
+    /// Send telemetry every this many control periods (0 and 1: every period): the
+    /// station spreads a shared channel's air over a larger fleet.
+    pub report_every: u8,
 }
 
 /// Base station → one follower: make for this point (site frame, mm) instead of the slot,

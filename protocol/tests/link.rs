@@ -548,6 +548,7 @@ fn a_broadcast_of_a_unicast_only_message_is_refused_however_well_signed() {
             index: 0,
             wide: Slot::default(),
             line: Slot::default(),
+            report_every: 1,
         }),
         Message::Hello(Hello { nonce: u64::MAX }),
         Message::Welcome(Welcome {

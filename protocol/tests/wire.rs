@@ -88,6 +88,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 index: i,
                 wide,
                 line,
+                report_every: 1,
             })
         }),
         any::<u8>().prop_map(|status| Message::Heartbeat(Heartbeat { status })),
@@ -289,6 +290,7 @@ fn golden_vectors() {
                 distance_mm: 1500,
                 bearing: 8192,
             },
+            report_every: 1,
         }),
         Message::Heartbeat(Heartbeat { status: 0 }),
         Message::Stop(Stop { reason: 1 }),

@@ -314,3 +314,23 @@ fn identical_to_native_on_a_sweep() {
     );
     assert!(r.goal_reached);
 }
+
+/// Seven followers sharing one 64 kbps channel on the station's schedule, reporting every
+/// few periods as the station tells them: identical in QEMU, the channel's figures too.
+#[test]
+fn identical_to_native_on_a_shared_channel() {
+    let g = generate::open_lot(2, 7);
+    let mut s = Scenario::parse(&g.toml, &g.name).expect("generated scenarios parse");
+    s.link.radio = Some("sik-64k".into());
+    s.link.access = base_station::scenario::radio::Access::Scheduled;
+    let r = assert_identical(s, 2);
+    let c = &r.link.channel;
+    println!(
+        "{}: identical, {:.0} % of the air, {} collisions",
+        g.name,
+        100.0 * c.utilisation,
+        c.collisions
+    );
+    assert_eq!(c.collisions, 0);
+    assert!(r.goal_reached);
+}

@@ -36,6 +36,10 @@ pub struct RobotNode {
     link: Link<1>,
     decoder: FrameDecoder,
     controller: Controller,
+    /// Telemetry every this many periods (the station's `report_every`), and the periods
+    /// since the last report.
+    report_every: u8,
+    unreported: u8,
 }
 
 impl RobotNode {
@@ -68,6 +72,8 @@ impl RobotNode {
             link,
             decoder: FrameDecoder::new(),
             controller: Controller::new(config, identity.role),
+            report_every: 1,
+            unreported: 0,
         }
     }
 
@@ -164,10 +170,13 @@ impl RobotNode {
                 );
                 c.set_command(twist, sent)
             }
-            Message::FormationCommand(f) => c.set_slots(Slots {
-                wide: f.wide.to_si(),
-                line: f.line.to_si(),
-            }),
+            Message::FormationCommand(f) => {
+                self.report_every = f.report_every.max(1);
+                c.set_slots(Slots {
+                    wide: f.wide.to_si(),
+                    line: f.line.to_si(),
+                })
+            }
             Message::Detour(d) if self.identity.role == Role::Follower => c.set_detour(
                 (units::mm_to_metres(d.x_mm), units::mm_to_metres(d.y_mm)),
                 sent,
@@ -199,7 +208,8 @@ impl RobotNode {
     }
 
     /// One control period: (re)challenge the base station if due, run the controller,
-    /// send telemetry. Returns the motor duties.
+    /// send telemetry once linked (every `report_every`-th period). Returns the motor
+    /// duties.
     pub fn tick(
         &mut self,
         now_ms: u32,
@@ -213,9 +223,15 @@ impl RobotNode {
             }
         }
         let out = self.controller.step(now_ms, sensors);
-        let telemetry = Message::Telemetry(self.telemetry());
-        if let Ok(n) = self.link.send(Address::Base, now_ms, &telemetry, &mut buf) {
-            tx(&buf[..n]);
+        self.unreported = self.unreported.saturating_add(1);
+        // Unlinked, a report would be refused (its session unknown): its air is kept.
+        let linked = self.link.peer(Address::Base).is_some_and(|p| p.is_linked());
+        if linked && self.unreported >= self.report_every {
+            self.unreported = 0;
+            let telemetry = Message::Telemetry(self.telemetry());
+            if let Ok(n) = self.link.send(Address::Base, now_ms, &telemetry, &mut buf) {
+                tx(&buf[..n]);
+            }
         }
         out
     }

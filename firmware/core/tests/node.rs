@@ -19,8 +19,9 @@ fn robot_key() -> FleetKey {
     FleetKey::from_bytes(&[5; 32])
 }
 
-#[test]
-fn follower_links_follows_and_reports() {
+/// Robot 1, a follower, and a base station for `periods` control periods: handshakes,
+/// slots (with `report_every`) and the leader's state each period. The telemetry heard.
+fn drive(report_every: u8, periods: u32) -> (RobotNode, Link<4>, Vec<Telemetry>) {
     let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
     base.add_peer(Address::Robot(1), robot_key());
     let id = Identity {
@@ -36,7 +37,7 @@ fn follower_links_follows_and_reports() {
     let mut telemetry = Vec::new();
     let mut buf = [0u8; MAX_WIRE];
 
-    for i in 0..30u32 {
+    for i in 0..periods {
         let now = i * 100;
         // Base: answer challenges, challenge the robot, slots and leader state.
         for b in std::mem::take(&mut to_base) {
@@ -63,6 +64,7 @@ fn follower_links_follows_and_reports() {
             index: 0,
             wide: Slot::from_si(3.0, 2.618).unwrap(),
             line: Slot::from_si(1.5, std::f32::consts::PI).unwrap(),
+            report_every,
         });
         let n = base.send(Address::Robot(1), now, &slots, &mut buf).unwrap();
         to_robot.extend_from_slice(&buf[..n]);
@@ -90,8 +92,15 @@ fn follower_links_follows_and_reports() {
         };
         node.tick(now, &sensors, &mut |b| to_base.extend_from_slice(b));
     }
-    assert!(node.link().peer(Address::Base).unwrap().is_linked());
     assert!(base.peer(Address::Robot(1)).unwrap().is_linked());
+    (node, base, telemetry)
+}
+
+#[test]
+fn follower_links_follows_and_reports() {
+    let (mut node, mut base, telemetry) = drive(1, 30);
+    let mut buf = [0u8; MAX_WIRE];
+    assert!(node.link().peer(Address::Base).unwrap().is_linked());
     let last = telemetry
         .last()
         .expect("telemetry reached the base station");
@@ -105,6 +114,11 @@ fn follower_links_follows_and_reports() {
     let rejects = node.link().stats().rejects;
     assert_eq!(last.link.rejected, 2);
     assert_eq!(rejects.get(protocol::Reject::UnknownSession), 2);
+    assert!(
+        telemetry.len() >= 25,
+        "unlinked, it kept quiet: {}",
+        telemetry.len()
+    );
 
     // A detour from the base station reaches the controller, in metres.
     let now = 3000;
@@ -282,6 +296,7 @@ fn commands_for_one_robot_are_taken_only_when_addressed_to_it() {
         index: 0,
         wide: Slot::from_si(9.0, 0.0).unwrap(),
         line: Slot::from_si(9.0, 0.0).unwrap(),
+        report_every: 1,
     });
     for (k, m) in [fix, detour, slots].into_iter().enumerate() {
         let t = now + 10 * k as u32;
@@ -302,4 +317,20 @@ fn commands_for_one_robot_are_taken_only_when_addressed_to_it() {
     assert_eq!(follower.controller().detour(now + 150), Some((30.0, 30.0)));
     assert_ne!(follower.controller().pose().unwrap(), before);
     assert_ne!(follower.controller().slots(), slots_before);
+}
+
+/// The station spreads a shared channel's air: told to report every third period, the
+/// follower sends a third of the telemetry frames.
+#[test]
+fn a_follower_reports_as_often_as_it_is_told() {
+    let (_, _, every) = drive(1, 60);
+    let (_, _, third) = drive(3, 60);
+    assert!(every.len() >= 55, "{}", every.len());
+    let expected = every.len() / 3;
+    assert!(
+        (expected - 1..=expected + 1).contains(&third.len()),
+        "{} of {}",
+        third.len(),
+        every.len()
+    );
 }

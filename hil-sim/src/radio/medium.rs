@@ -68,6 +68,10 @@ struct Mac {
 
 pub struct Medium {
     air: Air,
+    /// A frame handed over at a step reaches its modem at a random instant within the
+    /// step: the firmware's tick falls anywhere in it (a simulator's step is no clock
+    /// every robot shares).
+    spread_us: u64,
     access: Access,
     sense_us: u64,
     backoff_slots: u32,
@@ -82,16 +86,22 @@ pub struct Medium {
 impl Medium {
     /// A channel for the station (node 0) and `robots` robots; the schedule serves
     /// `leader` every period.
-    pub fn new(channel: Channel, robots: usize, leader: Option<NodeId>, seed: u64) -> Self {
+    pub fn new(
+        channel: Channel,
+        robots: usize,
+        leader: Option<NodeId>,
+        spread_us: u64,
+        seed: u64,
+    ) -> Self {
         let air = Air::new(channel);
         let sense_us = channel.preset.sense_us.ceil() as u64;
-        let followers = (1..=robots).filter(|n| Some(*n) != leader).collect();
         Self {
             air,
+            spread_us,
             access: channel.access,
             sense_us,
             backoff_slots: channel.preset.backoff_slots.max(1),
-            schedule: Schedule::new(&air, sense_us, leader, followers),
+            schedule: Schedule::of(channel, robots, leader),
             macs: (0..=robots).map(|_| Mac::default()).collect(),
             rng: ChaCha8Rng::seed_from_u64(seed),
             on_air: Vec::new(),
@@ -113,9 +123,14 @@ impl Medium {
         if from >= self.macs.len() {
             self.macs.resize_with(from + 1, Mac::default);
         }
+        let mut at = now_us + self.rng.random_range(0..self.spread_us.max(1));
+        if self.access == Access::Csma {
+            // Unslotted CSMA-CA: a random backoff before the first listen.
+            at += self.sense_us * self.rng.random_range(0..self.backoff_slots) as u64;
+        }
         let mac = &mut self.macs[from];
         if mac.queue.is_empty() {
-            mac.next_try = mac.next_try.max(now_us);
+            mac.next_try = mac.next_try.max(at);
         }
         // The schedule opens each period with the broadcast (the leader state): it goes
         // ahead of the unicast frames waiting.
@@ -296,7 +311,7 @@ mod tests {
 
     #[test]
     fn overlapping_frames_collide_and_a_sender_hears_nothing() {
-        let mut m = Medium::new(channel("sik-64k", Access::Aloha), 2, Some(1), 1);
+        let mut m = Medium::new(channel("sik-64k", Access::Aloha), 2, Some(1), 1, 1);
         m.enqueue(1, &[1; 30], vec![0, 2], 0);
         m.enqueue(2, &[2; 30], vec![0, 1], 1_000);
         let heard = m.advance(1_000_000);
@@ -345,7 +360,7 @@ mod tests {
     #[test]
     fn listening_first_avoids_most_collisions() {
         let lost = |access| {
-            let mut m = Medium::new(channel("sik-64k", access), 5, Some(1), 7);
+            let mut m = Medium::new(channel("sik-64k", access), 5, Some(1), 1, 7);
             feed(&mut m, traffic(5, 300));
             m.stats.collisions
         };
@@ -355,7 +370,7 @@ mod tests {
 
     #[test]
     fn the_schedule_never_collides() {
-        let mut m = Medium::new(channel("sik-64k", Access::Scheduled), 15, Some(1), 7);
+        let mut m = Medium::new(channel("sik-64k", Access::Scheduled), 15, Some(1), 1, 7);
         let s = m.schedule().clone();
         assert!(s.slots >= 2 && s.cycle_periods() > 1, "{s:?}");
         let heard = feed(&mut m, traffic(15, 100));

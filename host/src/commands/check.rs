@@ -172,6 +172,10 @@ fn print_channel(s: &base_station::scenario::Scenario) {
         up as f64 / 1000.0,
         load * 100.0
     );
+    println!(
+        "reporting   the leader every period, each follower every {} period(s)",
+        base_station::air::follower_report_every(s)
+    );
     if channel.access != Access::Scheduled {
         return;
     }
@@ -179,20 +183,18 @@ fn print_channel(s: &base_station::scenario::Scenario) {
         .robots
         .iter()
         .position(|r| r.role == base_station::scenario::Role::Leader);
-    let followers = (1..=s.robots.len())
-        .filter(|i| Some(*i - 1) != leader)
-        .collect();
-    let guard = channel.preset.sense_us.ceil() as u64;
-    let schedule = Schedule::new(&air, guard, leader.map(|i| i + 1), followers);
-    let every = schedule.cycle_periods();
+    let schedule = Schedule::of(channel, s.robots.len(), leader.map(|i| i + 1));
     println!(
-        "schedule    downlink {:.1} ms, then {} uplink slot(s) of {:.1} ms per 100 ms; {}",
+        "schedule    downlink {:.1} ms, the leader's slot {:.1} ms, {} follower slot(s) of \
+         {:.1} ms per 100 ms{}",
         schedule.down_us as f64 / 1000.0,
-        schedule.slots,
+        schedule.leader_slot_us as f64 / 1000.0,
+        schedule.slots.saturating_sub(1),
         schedule.slot_us as f64 / 1000.0,
-        match every {
-            u64::MAX => "no slot for the followers: this radio cannot carry the fleet".into(),
-            k => format!("each follower reports every {k} period(s)"),
+        if schedule.cycle_periods() == u64::MAX {
+            ": no slot for the followers, this radio cannot carry the fleet"
+        } else {
+            ""
         }
     );
 }

@@ -185,7 +185,7 @@ fn cell(v: Option<f64>, digits: usize) -> String {
 /// One preset's table: a row per access and fleet size (the worst seed's figures).
 fn table(preset: &str, rows: &[(Job, Figures)]) {
     println!("\n#### {preset}\n");
-    println!("| access | robots | age p99 (ms) | collisions | air used | uplink delivery | follower reports every | worst error (m) | goal | contacts | within bounds |");
+    println!("| access | robots | age p99 (ms) | collisions | air used | uplink delivery | follower slot every | worst error (m) | goal | contacts | within bounds |");
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     for (job, f) in rows.iter().filter(|(j, _)| j.preset == preset) {
         println!(

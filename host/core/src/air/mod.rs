@@ -6,7 +6,8 @@ mod schedule;
 
 use lora_modulation::{Bandwidth, BaseBandModulationParams, CodingRate, SpreadingFactor};
 
-use crate::scenario::radio::{Channel, Phy};
+use crate::scenario::radio::{Access, Channel, Phy};
+use crate::scenario::{Role, Scenario};
 
 pub use schedule::Schedule;
 
@@ -17,10 +18,51 @@ pub type NodeId = usize;
 pub const PERIOD_US: u64 = 100_000;
 /// The largest uplink frame a slot is cut for (a telemetry frame is at most 38 B).
 pub const UPLINK_FRAME_BYTES: usize = 40;
-/// The downlink's frames per period: leader state, the leader's command, one more.
+/// Frames one uplink slot holds: a report and one more (a handshake, an answer), so a
+/// robot's own traffic never outgrows its slot and backs up in its modem.
+pub const UPLINK_FRAMES: usize = 2;
+/// The downlink's frames per period: leader state, the leader's command, one more; and
+/// one per ten followers (each has its slots sent once a second).
 pub const DOWNLINK_FRAMES: usize = 3;
 /// The largest downlink frame (a leader state is at most 31 B).
 pub const DOWNLINK_FRAME_BYTES: usize = 32;
+
+/// Followers report at most this seldom: 5 s between reports.
+const MAX_REPORT_EVERY: u64 = 50;
+/// Unscheduled, the offered load is kept at or under this share of the air: past it
+/// listening first no longer keeps collisions rare.
+const UNSCHEDULED_LOAD: f64 = 0.5;
+
+/// How often the followers report (periods) so that the channel carries the fleet: with
+/// the station's schedule, once per turn of their slots; unscheduled, the fewest periods
+/// that keep the offered load under `UNSCHEDULED_LOAD`; every period without a shared
+/// channel. The leader reports every period (its state is the followers' reference).
+pub fn follower_report_every(s: &Scenario) -> u8 {
+    let Ok(Some(channel)) = s.link.channel() else {
+        return 1;
+    };
+    let leader = s
+        .robots
+        .iter()
+        .position(|r| r.role == Role::Leader)
+        .map(|i| i + 1);
+    let every = match channel.access {
+        Access::Scheduled => Schedule::of(channel, s.robots.len(), leader).report_every(),
+        Access::Csma | Access::Aloha => {
+            let air = Air::new(channel);
+            let fixed = (2 * air.us(DOWNLINK_FRAME_BYTES) + air.us(UPLINK_FRAME_BYTES)) as f64;
+            let followers = s.robots.len().saturating_sub(1) as f64;
+            let reports = followers * air.us(UPLINK_FRAME_BYTES) as f64;
+            let room = UNSCHEDULED_LOAD * PERIOD_US as f64 - fixed;
+            if room <= 0.0 {
+                MAX_REPORT_EVERY
+            } else {
+                (reports / room).ceil() as u64
+            }
+        }
+    };
+    every.clamp(1, MAX_REPORT_EVERY) as u8
+}
 
 /// Air time of a frame.
 #[derive(Debug, Clone, Copy)]

@@ -2,13 +2,18 @@
 //! leader-state broadcast first), then the robots' uplink slots.
 
 use super::{Air, NodeId, PERIOD_US};
-use super::{DOWNLINK_FRAMES, DOWNLINK_FRAME_BYTES, UPLINK_FRAME_BYTES};
+use super::{DOWNLINK_FRAMES, DOWNLINK_FRAME_BYTES, UPLINK_FRAMES, UPLINK_FRAME_BYTES};
+use crate::scenario::radio::Channel;
 
 /// The base station's schedule: each period opens with the downlink, then uplink slots;
 /// the leader's is the first of every period, the followers take the others in turn.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Schedule {
     pub down_us: u64,
+    /// The leader's slot: two frames (its report every period, and one more).
+    pub leader_slot_us: u64,
+    /// A follower's slot: two frames where every robot has a slot each period, else one
+    /// (a follower taking turns reports every other turn: `report_every`).
     pub slot_us: u64,
     pub guard_us: u64,
     /// Uplink slots per period.
@@ -18,22 +23,56 @@ pub struct Schedule {
 }
 
 impl Schedule {
-    /// The downlink holds at least `DOWNLINK_FRAMES` frames; every robot has a slot each
-    /// period where they fit, else the leader has one and the followers share the rest;
-    /// what is left of the period goes to the downlink.
+    /// The schedule of `channel` for the station and nodes 1..=`robots`, `leader` among
+    /// them; guards of one listening time between slots.
+    pub fn of(channel: Channel, robots: usize, leader: Option<NodeId>) -> Self {
+        let followers = (1..=robots).filter(|n| Some(*n) != leader).collect();
+        let guard_us = channel.preset.sense_us.ceil() as u64;
+        Self::new(&Air::new(channel), guard_us, leader, followers)
+    }
+
+    /// The downlink holds at least `DOWNLINK_FRAMES` frames and one per ten followers.
+    /// Every robot has a slot of
+    /// `UPLINK_FRAMES` each period where they fit; else the leader has one and the
+    /// followers take one-frame slots in turn. What is left of the period goes to the
+    /// downlink.
     pub fn new(air: &Air, guard_us: u64, leader: Option<NodeId>, followers: Vec<NodeId>) -> Self {
-        let down_min = DOWNLINK_FRAMES as u64 * (air.us(DOWNLINK_FRAME_BYTES) + guard_us);
+        let frames = (DOWNLINK_FRAMES + followers.len().div_ceil(10)) as u64;
+        let down_min = frames * (air.us(DOWNLINK_FRAME_BYTES) + guard_us);
         let down_min = down_min.min(PERIOD_US);
-        let slot_us = air.us(UPLINK_FRAME_BYTES) + guard_us;
+        let frame = air.us(UPLINK_FRAME_BYTES);
+        let wide = UPLINK_FRAMES as u64 * frame + guard_us;
         let robots = followers.len() as u64 + u64::from(leader.is_some());
-        let slots = ((PERIOD_US - down_min) / slot_us).min(robots);
+        let room = PERIOD_US - down_min;
+        let leader_slot_us = if leader.is_some() { wide } else { 0 };
+        let (slot_us, slots) = if robots * wide <= room {
+            (wide, robots)
+        } else {
+            let narrow = frame + guard_us;
+            let followers = room.saturating_sub(leader_slot_us) / narrow;
+            let slots = u64::from(leader.is_some() && leader_slot_us <= room) + followers;
+            (narrow, slots.min(robots))
+        };
+        let first = u64::from(leader.is_some() && slots > 0);
+        let used = first * leader_slot_us + (slots - first) * slot_us;
         Self {
-            down_us: PERIOD_US - slots * slot_us,
+            down_us: PERIOD_US - used,
+            leader_slot_us,
             slot_us,
             guard_us,
             slots,
             leader,
             followers,
+        }
+    }
+
+    /// Periods between two reports of a follower: every period where it has a two-frame
+    /// slot each period, else two turns (a one-frame slot keeps room for a handshake).
+    pub fn report_every(&self) -> u64 {
+        match self.cycle_periods() {
+            1 if self.slot_us == self.leader_slot_us || self.leader.is_none() => 1,
+            u64::MAX => u64::MAX,
+            c => 2 * c,
         }
     }
 
@@ -66,8 +105,13 @@ impl Schedule {
                 Some(self.followers[(g % self.followers.len() as u64) as usize])
             };
             if owner == Some(node) {
-                let start = base + self.down_us + s * self.slot_us;
-                out.push((start, start + self.slot_us - self.guard_us));
+                let (start, len) = if s < first {
+                    (base + self.down_us, self.leader_slot_us)
+                } else {
+                    let start = base + self.down_us + first * self.leader_slot_us;
+                    (start + (s - first) * self.slot_us, self.slot_us)
+                };
+                out.push((start, start + len - self.guard_us));
             }
         }
         out
@@ -78,6 +122,8 @@ impl Schedule {
     pub fn next_start(&self, node: NodeId, t: u64, air_us: u64) -> Option<u64> {
         let span = if node == 0 {
             self.down_us
+        } else if Some(node) == self.leader {
+            self.leader_slot_us - self.guard_us
         } else {
             self.slot_us - self.guard_us
         };

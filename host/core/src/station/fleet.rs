@@ -137,6 +137,8 @@ pub struct Fleet {
     track_width: f64,
     /// Telemetry older than this is stale, ms.
     timeout_ms: u32,
+    /// A follower's (it may report less often than the leader).
+    follower_timeout_ms: u32,
 }
 
 impl Fleet {
@@ -151,7 +153,14 @@ impl Fleet {
             robots,
             track_width,
             timeout_ms,
+            follower_timeout_ms: timeout_ms,
         }
+    }
+
+    /// Followers' telemetry stale after `ms` instead.
+    pub fn with_follower_timeout(mut self, ms: u32) -> Self {
+        self.follower_timeout_ms = ms;
+        self
     }
 
     pub fn robots(&self) -> &BTreeMap<u16, RobotStatus> {
@@ -209,8 +218,16 @@ impl Fleet {
         self.robots.get(&id).filter(|s| {
             s.telemetry
                 .is_some_and(|t| t.faults & faults::NOT_LOCALIZED == 0)
-                && now_ms.wrapping_sub(s.received_ms) <= self.timeout_ms
+                && now_ms.wrapping_sub(s.received_ms) <= self.timeout_of(id)
         })
+    }
+
+    fn timeout_of(&self, id: u16) -> u32 {
+        if id == self.leader {
+            self.timeout_ms
+        } else {
+            self.follower_timeout_ms
+        }
     }
 
     /// A robot's fresh telemetry.

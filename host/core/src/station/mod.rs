@@ -117,8 +117,11 @@ pub struct StationConfig {
     pub initial_speed: f64,
     /// Followers whose reported tracking error exceeds this slow the leader down, m.
     pub wait_for_followers_above: f64,
-    /// Telemetry older than this is stale, ms.
+    /// Telemetry older than this is stale, ms (a follower's: that plus its reporting
+    /// interval twice over).
     pub telemetry_timeout_ms: u32,
+    /// Followers send telemetry every this many periods (`air::follower_report_every`).
+    pub report_every: u8,
     /// The speed a follower can use to hold its slot (a margin under its limit), m/s.
     pub follower_speed: f64,
     /// The acceleration a follower can use to keep up (a margin under its limit), m/s².
@@ -174,6 +177,7 @@ impl StationConfig {
             initial_speed: s.leader().initial_speed,
             wait_for_followers_above: s.planner.wait_for_followers_above,
             telemetry_timeout_ms: s.follower.leader_timeout_ms,
+            report_every: crate::air::follower_report_every(s),
             follower_speed: 0.8 * s.robot.max_speed,
             follower_accel: 0.5 * s.robot.max_accel,
             period_ms: 100,
@@ -233,6 +237,9 @@ pub struct BaseStation {
     world: Map,
     outbox: Vec<u8>,
     last_slots_ms: Option<u32>,
+    /// Robots whose slots go out at the next step (they just linked: what we sent them
+    /// before, they refused).
+    slots_due: Vec<u16>,
     events: Vec<StationEvent>,
     /// Forwarding fixes from a localization source, and watching their age.
     fix_watch: Option<FixWatch<OutgoingFix>>,
@@ -272,13 +279,21 @@ impl BaseStation {
             master.broadcast(),
             session,
             nonce_base,
-            Timing::default(),
+            Timing {
+                // A robot reporting seldom is not silent: it is on a shared channel.
+                relink_after_ms: Timing::default().relink_after_ms
+                    + 2 * u32::from(cfg.report_every.max(1) - 1) * cfg.period_ms,
+                ..Timing::default()
+            },
         ));
         let fleet = Fleet::new(
             cfg.leader,
             cfg.followers.clone(),
             cfg.track_width,
             cfg.telemetry_timeout_ms,
+        )
+        .with_follower_timeout(
+            cfg.telemetry_timeout_ms + 2 * u32::from(cfg.report_every.max(1) - 1) * cfg.period_ms,
         );
         for id in fleet.ids() {
             link.add_peer(Address::Robot(id), master.robot(id));
@@ -299,6 +314,7 @@ impl BaseStation {
             gate: Gate::Waiting,
             outbox: Vec::new(),
             last_slots_ms: None,
+            slots_due: Vec::new(),
             events: Vec::new(),
             fix_watch: None,
             operator: OperatorHold::default(),
@@ -551,8 +567,12 @@ impl BaseStation {
             .last_slots_ms
             .is_none_or(|t| now_ms.wrapping_sub(t) >= 1000);
         if due_slots {
-            self.send_slots(now_ms);
+            self.send_slots(now_ms, None);
             self.last_slots_ms = Some(now_ms);
+            self.slots_due.clear();
+        } else if !self.slots_due.is_empty() {
+            let due = std::mem::take(&mut self.slots_due);
+            self.send_slots(now_ms, Some(&due));
         }
         self.send_due_fixes(now_ms);
         let forgotten = self.perception.age(now_ms);
@@ -663,7 +683,7 @@ impl BaseStation {
         self.events
             .push(StationEvent::LineReordered { at_ms: now_ms });
         self.fleet.followers = order;
-        self.send_slots(now_ms);
+        self.send_slots(now_ms, None);
         self.last_slots_ms = Some(now_ms);
     }
 

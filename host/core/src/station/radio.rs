@@ -68,7 +68,9 @@ impl BaseStation {
                         self.outbox.extend_from_slice(&buf[..n]);
                         // The robot verifies our frames from this answer on: its slots go
                         // out at the next step (sent before, they were refused).
-                        self.last_slots_ms = None;
+                        if let Address::Robot(id) = from {
+                            self.slots_due_for(id);
+                        }
                     }
                 }
                 Ok(Event::Linked { peer }) => {
@@ -78,7 +80,7 @@ impl BaseStation {
                             robot,
                             at_ms: now_ms,
                         });
-                        self.last_slots_ms = None;
+                        self.slots_due_for(robot);
                     }
                 }
                 Ok(Event::Synced { .. } | Event::Ignored) => {}
@@ -98,10 +100,19 @@ impl BaseStation {
         }
     }
 
-    /// Each follower's two slots.
-    pub(super) fn send_slots(&mut self, now_ms: u32) {
+    fn slots_due_for(&mut self, id: u16) {
+        if !self.slots_due.contains(&id) {
+            self.slots_due.push(id);
+        }
+    }
+
+    /// Each follower's two slots (`only`: these followers').
+    pub(super) fn send_slots(&mut self, now_ms: u32, only: Option<&[u16]>) {
         let n = self.fleet.followers.len();
         for (k, id) in self.fleet.followers.clone().into_iter().enumerate() {
+            if only.is_some_and(|o| !o.contains(&id)) {
+                continue;
+            }
             let slot =
                 |(l, phi): (f64, f64)| Slot::from_si(l as f32, phi as f32).unwrap_or_default();
             let formation = self.guidance.formation();
@@ -110,6 +121,7 @@ impl BaseStation {
                 index: k.min(u16::MAX as usize) as u16,
                 wide: slot(formation.wide_slots()[k]),
                 line: slot(formation.line_slots()[k]),
+                report_every: self.cfg.report_every,
             });
             self.send(Address::Robot(id), now_ms, &cmd);
         }
