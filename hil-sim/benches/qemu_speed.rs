@@ -1,5 +1,5 @@
 //! The firmware in QEMU: wall time and real-time factor of `paper-obstacles` with all three
-//! robots in QEMU and with six (three more followers, a V), QEMU boot time, and
+//! robots in QEMU, with six and with sixteen (more followers behind, a V), QEMU boot time, and
 //! instructions per control step on the MCU.
 //! `cargo bench -p hil-sim --bench qemu_speed` (needs qemu-system-arm and the firmware:
 //! `./scripts/build-firmware.sh`). Prints a table; one run is the measurement.
@@ -14,18 +14,42 @@ use std::time::Instant;
 use base_station::scenario::Scenario;
 use hil_sim::world::{Firmware, SimOptions, World};
 
-/// `paper-obstacles` with three more followers behind the start: six robots in a V.
-fn six_robots(text: &str) -> Scenario {
+/// `paper-obstacles` with more followers behind the start (`extra`: their starts), a V.
+fn more_robots(text: &str, extra: &[(f64, f64)]) -> Scenario {
+    let n = 3 + extra.len();
     let mut t = text
-        .replace("name = \"paper-obstacles\"", "name = \"paper-obstacles-6\"")
+        .replace(
+            "name = \"paper-obstacles\"",
+            &format!("name = \"paper-obstacles-{n}\""),
+        )
         .replace("shape = \"triangle\"", "shape = \"v\"");
-    for (id, x, y) in [(3, -5.0, -2.0), (4, -2.0, -5.0), (5, -7.0, -6.0)] {
+    for (i, (x, y)) in extra.iter().enumerate() {
+        let id = 3 + i;
         t += &format!(
             "\n[[robots]]\nid = {id}\nrole = \"follower\"\nstart = {{ x = {x:.1}, y = {y:.1}, heading_deg = 45.0 }}\n"
         );
     }
-    Scenario::parse(&t, "paper-obstacles-6").expect("the six-robot variant parses")
+    Scenario::parse(&t, "paper-obstacles-more").expect("the larger fleet parses")
 }
+
+/// Three more followers: six robots.
+const SIX: [(f64, f64); 3] = [(-5.0, -2.0), (-2.0, -5.0), (-7.0, -6.0)];
+/// Thirteen more, on a grid behind the start: sixteen robots.
+const SIXTEEN: [(f64, f64); 13] = [
+    (-6.0, -6.0),
+    (-3.5, -6.0),
+    (-1.0, -6.0),
+    (1.5, -6.0),
+    (-6.0, -3.5),
+    (-3.5, -3.5),
+    (-1.0, -3.5),
+    (1.0, -2.0),
+    (-6.0, -1.0),
+    (-3.5, -1.0),
+    (-1.0, -1.0),
+    (-6.5, 1.5),
+    (-1.5, 1.5),
+];
 
 /// Boots and runs one scenario with every robot in QEMU; prints its speed.
 fn measure(scenario: Scenario) -> World {
@@ -57,7 +81,8 @@ fn main() {
     );
     let text = std::fs::read_to_string(&path).unwrap();
     let world = measure(Scenario::parse(&text, &path).unwrap());
-    measure(six_robots(&text));
+    measure(more_robots(&text, &SIX));
+    measure(more_robots(&text, &SIXTEEN));
     println!(
         "{:<6} {:>8} {:>13} {:>8} {:>8} {:>16} {:>8}",
         "robot", "periods", "control step", "p99", "max", "radio rx/period", "p99"

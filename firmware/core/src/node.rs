@@ -208,8 +208,7 @@ impl RobotNode {
     }
 
     /// One control period: (re)challenge the base station if due, run the controller,
-    /// send telemetry once linked (every `report_every`-th period). Returns the motor
-    /// duties.
+    /// send telemetry (every `report_every`-th period). Returns the motor duties.
     pub fn tick(
         &mut self,
         now_ms: u32,
@@ -224,9 +223,7 @@ impl RobotNode {
         }
         let out = self.controller.step(now_ms, sensors);
         self.unreported = self.unreported.saturating_add(1);
-        // Unlinked, a report would be refused (its session unknown): its air is kept.
-        let linked = self.link.peer(Address::Base).is_some_and(|p| p.is_linked());
-        if linked && self.unreported >= self.report_every {
+        if self.unreported >= self.report_every {
             self.unreported = 0;
             let telemetry = Message::Telemetry(self.telemetry());
             if let Ok(n) = self.link.send(Address::Base, now_ms, &telemetry, &mut buf) {

@@ -114,11 +114,7 @@ fn follower_links_follows_and_reports() {
     let rejects = node.link().stats().rejects;
     assert_eq!(last.link.rejected, 2);
     assert_eq!(rejects.get(protocol::Reject::UnknownSession), 2);
-    assert!(
-        telemetry.len() >= 25,
-        "unlinked, it kept quiet: {}",
-        telemetry.len()
-    );
+    assert!(telemetry.len() >= 25, "{}", telemetry.len());
 
     // A detour from the base station reaches the controller, in metres.
     let now = 3000;

@@ -122,6 +122,8 @@ pub struct StationConfig {
     pub telemetry_timeout_ms: u32,
     /// Followers send telemetry every this many periods (`air::follower_report_every`).
     pub report_every: u8,
+    /// The robots share one channel (`[link] radio`): its air is scarce.
+    pub shared_channel: bool,
     /// The speed a follower can use to hold its slot (a margin under its limit), m/s.
     pub follower_speed: f64,
     /// The acceleration a follower can use to keep up (a margin under its limit), m/s².
@@ -178,6 +180,7 @@ impl StationConfig {
             wait_for_followers_above: s.planner.wait_for_followers_above,
             telemetry_timeout_ms: s.follower.leader_timeout_ms,
             report_every: crate::air::follower_report_every(s),
+            shared_channel: s.link.radio.is_some(),
             follower_speed: 0.8 * s.robot.max_speed,
             follower_accel: 0.5 * s.robot.max_accel,
             period_ms: 100,

@@ -100,8 +100,12 @@ impl BaseStation {
         }
     }
 
+    /// Slots for robot `id` at the next step: on a shared channel its own alone (the
+    /// air is scarce), else every follower's (a slot lost before is mended at once).
     fn slots_due_for(&mut self, id: u16) {
-        if !self.slots_due.contains(&id) {
+        if !self.cfg.shared_channel {
+            self.last_slots_ms = None;
+        } else if !self.slots_due.contains(&id) {
             self.slots_due.push(id);
         }
     }
