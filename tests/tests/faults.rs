@@ -490,3 +490,25 @@ fn a_captured_robots_broadcast_commands_are_refused_and_change_nothing() {
     println!("time to goal: {a:.1} s clean, {b:.1} s attacked");
     assert!((a - b).abs() < 2.0);
 }
+
+/// On a shared 64 kbps channel with the station's schedule, the same: a robot that no
+/// longer hears the schedule's downlink (or is not heard) stops within its bound and
+/// goes on when the air comes back.
+#[test]
+fn one_way_silence_on_a_scheduled_channel_stops_then_resumes() {
+    for kind in [FaultKind::SilentDownlink, FaultKind::SilentUplink] {
+        let mut s = with(
+            shipped("paper-passage"),
+            &[(30.0, kind, Some(5.0), None, None)],
+        );
+        s.link.radio = Some("sik-64k".into());
+        s.link.access = base_station::scenario::radio::Access::Scheduled;
+        let (r, world) = run(s, 1);
+        assert_safe(&r);
+        assert!(r.goal_reached, "{kind:?}");
+        assert_eq!(r.link.channel.collisions, 0, "{kind:?}");
+        let travel = travel_while_cut_off(&world, 30.0, 35.0);
+        println!("{kind:?} for 5 s on a scheduled channel: at most {travel:.2} m driven");
+        assert!(travel <= RobotConfig::DEFAULT.stop_distance_bound() as f64);
+    }
+}
