@@ -8,6 +8,7 @@
 mod commands;
 mod key;
 mod live;
+mod pty;
 
 use std::process::ExitCode;
 

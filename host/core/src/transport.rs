@@ -1,5 +1,7 @@
-//! The byte pipes the base station speaks through: a serial port (a USB radio modem or a
-//! UART) or UDP. Both carry the protocol's COBS frames unchanged.
+//! The byte pipes the fleet speaks through, one abstraction for every link: a serial port
+//! (a USB radio modem or a UART), UDP to a radio bridge, and UDP answering whoever spoke
+//! last (the simulated robots' side, `basestation robots`). Each carries the protocol's
+//! COBS frames unchanged.
 
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, UdpSocket};
@@ -9,12 +11,16 @@ use std::time::Duration;
 pub trait Transport {
     /// Sends bytes (whole frames).
     fn send(&mut self, bytes: &[u8]) -> io::Result<()>;
-    /// Reads what is available within `timeout` (0 bytes when nothing came).
+    /// Reads what is available within `timeout` (0 bytes when nothing came; a zero
+    /// `timeout` does not wait).
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize>;
+    /// Where the link is, for the operator: `serial /dev/ttyUSB0`, `udp 10.0.0.5:7000`.
+    fn describe(&self) -> String;
 }
 
 pub struct Serial {
     port: Box<dyn serialport::SerialPort>,
+    name: String,
 }
 
 impl Serial {
@@ -27,11 +33,18 @@ impl Serial {
         // answered seconds late would set its clock offset off by half that wait.
         port.clear(serialport::ClearBuffer::Input)
             .map_err(io::Error::other)?;
-        Ok(Self { port })
+        Ok(Self {
+            name: port.name().unwrap_or_else(|| path.to_string()),
+            port,
+        })
     }
 }
 
 impl Transport for Serial {
+    fn describe(&self) -> String {
+        format!("serial {}", self.name)
+    }
+
     fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
         self.port.write_all(bytes)
     }
@@ -95,23 +108,98 @@ impl Transport for Udp {
     }
 
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        self.socket
-            .set_read_timeout(Some(timeout.max(Duration::from_millis(1))))?;
-        match self.socket.recv_from(buf) {
-            Ok((n, _)) => Ok(n),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::WouldBlock
-                        | io::ErrorKind::TimedOut
-                        | io::ErrorKind::Interrupted
-                        // An earlier datagram's receiver was not there (ICMP): not ours.
-                        | io::ErrorKind::ConnectionRefused
-                ) =>
-            {
-                Ok(0)
-            }
-            Err(e) => Err(e),
+        Ok(recv_within(&self.socket, buf, timeout)?.map_or(0, |(n, _)| n))
+    }
+
+    fn describe(&self) -> String {
+        format!("udp {}", self.peer)
+    }
+}
+
+/// One datagram within `timeout` (`None`: none came; zero: do not wait).
+fn recv_within(
+    socket: &UdpSocket,
+    buf: &mut [u8],
+    timeout: Duration,
+) -> io::Result<Option<(usize, SocketAddr)>> {
+    if timeout.is_zero() {
+        socket.set_nonblocking(true)?;
+    } else {
+        socket.set_nonblocking(false)?;
+        socket.set_read_timeout(Some(timeout))?;
+    }
+    match socket.recv_from(buf) {
+        Ok(got) => Ok(Some(got)),
+        Err(e)
+            if matches!(
+                e.kind(),
+                io::ErrorKind::WouldBlock
+                    | io::ErrorKind::TimedOut
+                    | io::ErrorKind::Interrupted
+                    // An earlier datagram's receiver was not there (ICMP): not ours.
+                    | io::ErrorKind::ConnectionRefused
+            ) =>
+        {
+            Ok(None)
         }
+        Err(e) => Err(e),
+    }
+}
+
+/// UDP on a bound address, answering whoever sent the last datagram (until someone does,
+/// what is sent goes nowhere, as on the air): the robots' side of `--udp`.
+pub struct UdpAnswer {
+    socket: UdpSocket,
+    peer: Option<SocketAddr>,
+}
+
+impl UdpAnswer {
+    pub fn bind(addr: SocketAddr) -> io::Result<Self> {
+        Ok(Self {
+            socket: UdpSocket::bind(addr)?,
+            peer: None,
+        })
+    }
+
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+}
+
+impl Transport for UdpAnswer {
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        let Some(peer) = self.peer else {
+            return Ok(());
+        };
+        self.socket.set_nonblocking(true)?;
+        for chunk in bytes.chunks(1200) {
+            match self.socket.send_to(chunk, peer) {
+                // A full socket buffer or a peer gone: the air drops it.
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::WouldBlock | io::ErrorKind::ConnectionRefused
+                    ) => {}
+                r => {
+                    r?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        Ok(match recv_within(&self.socket, buf, timeout)? {
+            Some((n, from)) => {
+                self.peer = Some(from);
+                n
+            }
+            None => 0,
+        })
+    }
+
+    fn describe(&self) -> String {
+        self.local_addr()
+            .map_or("this UDP socket".into(), |a| format!("udp {a}"))
     }
 }

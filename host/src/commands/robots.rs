@@ -7,14 +7,14 @@
 //! `udp ADDR` (the bound address) or `pty PATH` (the device for `run --port`). At the end
 //! (goal reached and settled, `--duration`, or Ctrl-C) writes the report `sim` writes.
 
-use std::net::{SocketAddr, UdpSocket};
-use std::os::fd::{AsFd, OwnedFd};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use base_station::transport::{Transport, UdpAnswer};
 use clap::Args;
 use hil_sim::world::{BaseSide, FixPath, SimOptions, World};
 
@@ -60,114 +60,27 @@ pub struct RobotsArgs {
 /// How much longer than the settling time the robots wait after their goal, s.
 const STATION_GRACE_S: f64 = 2.0;
 
-/// The robots' side of the transport.
-enum Air {
-    /// Answers whoever sent the last datagram.
-    Udp {
-        socket: UdpSocket,
-        peer: Option<SocketAddr>,
-    },
-    /// The master side of a pseudo-terminal; the slave is kept open so that the master
-    /// keeps working while `run` closes and reopens the device.
-    Pty { master: OwnedFd, _slave: OwnedFd },
+/// The robots' side of the link: UDP answering the station, or a pseudo-terminal.
+fn open_air(args: &RobotsArgs) -> anyhow::Result<Box<dyn Transport>> {
+    if args.pty {
+        let pty = crate::pty::Pty::open()?;
+        println!("pty {}", pty.path()?.display());
+        return Ok(Box::new(pty));
+    }
+    let addr = args.udp.expect("clap requires --udp or --pty");
+    let udp = UdpAnswer::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
+    println!("udp {}", udp.local_addr()?);
+    Ok(Box::new(udp))
 }
 
-impl Air {
-    /// Where `run` reaches these robots.
-    fn address(&self) -> String {
-        match self {
-            Air::Udp { socket, .. } => socket
-                .local_addr()
-                .map_or("this UDP socket".into(), |a| format!("udp {a}")),
-            Air::Pty { _slave, .. } => nix::unistd::ttyname(_slave.as_fd())
-                .map_or("this pseudo-terminal".into(), |p| {
-                    format!("pty {}", p.display())
-                }),
+/// Everything waiting on `air` now (never blocks).
+fn poll(air: &mut dyn Transport, out: &mut Vec<u8>) -> anyhow::Result<()> {
+    let mut buf = [0u8; 2048];
+    loop {
+        match air.recv(&mut buf, Duration::ZERO)? {
+            0 => return Ok(()),
+            n => out.extend_from_slice(&buf[..n]),
         }
-    }
-
-    fn open_udp(addr: SocketAddr) -> anyhow::Result<Self> {
-        let socket = UdpSocket::bind(addr).with_context(|| format!("cannot bind {addr}"))?;
-        socket.set_nonblocking(true)?;
-        println!("udp {}", socket.local_addr()?);
-        Ok(Air::Udp { socket, peer: None })
-    }
-
-    fn open_pty() -> anyhow::Result<Self> {
-        use nix::fcntl::{fcntl, FcntlArg, OFlag};
-        use nix::sys::termios;
-        let pair = nix::pty::openpty(None, None).context("cannot open a pseudo-terminal")?;
-        // Raw both ways: the protocol's bytes pass untouched (no echo, no CR/LF mapping).
-        for fd in [&pair.master, &pair.slave] {
-            let mut t = termios::tcgetattr(fd.as_fd())?;
-            termios::cfmakeraw(&mut t);
-            termios::tcsetattr(fd.as_fd(), termios::SetArg::TCSANOW, &t)?;
-        }
-        fcntl(&pair.master, FcntlArg::F_SETFL(OFlag::O_NONBLOCK))?;
-        let path = nix::unistd::ttyname(pair.slave.as_fd()).context("the pty has no name")?;
-        println!("pty {}", path.display());
-        Ok(Air::Pty {
-            master: pair.master,
-            _slave: pair.slave,
-        })
-    }
-
-    /// Everything waiting now (never blocks).
-    fn poll(&mut self, out: &mut Vec<u8>) -> anyhow::Result<()> {
-        let mut buf = [0u8; 2048];
-        loop {
-            let n = match self {
-                Air::Udp { socket, peer } => match socket.recv_from(&mut buf) {
-                    Ok((n, from)) => {
-                        *peer = Some(from);
-                        n
-                    }
-                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return Ok(()),
-                    // A previous datagram's peer was gone (ICMP): not ours to mind.
-                    Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
-                    Err(e) => return Err(e.into()),
-                },
-                Air::Pty { master, .. } => match nix::unistd::read(&*master, &mut buf) {
-                    Ok(0) | Err(nix::errno::Errno::EAGAIN) => return Ok(()),
-                    Ok(n) => n,
-                    Err(e) => return Err(e.into()),
-                },
-            };
-            out.extend_from_slice(&buf[..n]);
-        }
-    }
-
-    fn send(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        if bytes.is_empty() {
-            return Ok(());
-        }
-        match self {
-            Air::Udp { socket, peer } => {
-                let Some(peer) = peer else {
-                    return Ok(()); // nobody listening yet: the air carries it nowhere
-                };
-                for chunk in bytes.chunks(1200) {
-                    match socket.send_to(chunk, *peer) {
-                        Ok(_) => {}
-                        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                        Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
-                        Err(e) => return Err(e.into()),
-                    }
-                }
-            }
-            Air::Pty { master, .. } => {
-                // A modem with nobody reading drops what its buffer cannot hold.
-                let mut rest = bytes;
-                while !rest.is_empty() {
-                    match nix::unistd::write(&*master, rest) {
-                        Ok(n) => rest = &rest[n..],
-                        Err(nix::errno::Errno::EAGAIN) => break,
-                        Err(e) => return Err(e.into()),
-                    }
-                }
-            }
-        }
-        Ok(())
     }
 }
 
@@ -202,7 +115,7 @@ pub fn run(args: RobotsArgs) -> anyhow::Result<()> {
 /// The scenario's robots behind a real transport, and what they publish.
 struct Rehearsal {
     world: World,
-    air: Air,
+    air: Box<dyn Transport>,
     listening: String,
     publisher: FixPublisher,
     scans: Option<crate::live::feeds::scan::ScanPublisher>,
@@ -230,12 +143,8 @@ impl Rehearsal {
         }
         let settle_s = options.settle_s;
         let world = World::new(scenario, options).context("cannot start the robots")?;
-        let air = if args.pty {
-            Air::open_pty()?
-        } else {
-            Air::open_udp(args.udp.expect("clap requires --udp or --pty"))?
-        };
-        let listening = air.address();
+        let air = open_air(args)?;
+        let listening = air.describe();
         Ok(Self {
             world,
             air,
@@ -254,13 +163,16 @@ impl Rehearsal {
     /// out, the fixes and the scan published (fixes until `fixes_stop_at`, s).
     fn step(&mut self, step_us: u64, fixes_stop_at: Option<f64>) -> anyhow::Result<()> {
         self.heard.clear();
-        self.air.poll(&mut self.heard)?;
+        poll(self.air.as_mut(), &mut self.heard)?;
         self.diagnosis.heard(self.heard.len());
         self.world.base_transmit(&self.heard);
         self.world
             .step(step_us)
             .context("a robot's controller failed")?;
-        self.air.send(&self.world.take_base_inbox())?;
+        let out = self.world.take_base_inbox();
+        if !out.is_empty() {
+            self.air.send(&out)?;
+        }
         let t_s = self.world.t_us as f64 / 1e6;
         let fixes = self.world.take_published_fixes();
         if fixes_stop_at.is_none_or(|stop| t_s < stop) {
