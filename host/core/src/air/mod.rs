@@ -77,35 +77,45 @@ impl Air {
         &self.0
     }
 
+    /// Air time of a frame of `bytes`, µs: a fixed-rate modem's coded bits and
+    /// per-frame overhead, or LoRa's time-on-air formula; each plus its fixed overhead.
     pub fn us(&self, bytes: usize) -> u64 {
-        if let Some(us) = self.0.rate_air_us(bytes) {
-            return us.ceil() as u64;
+        match self.0.phy {
+            Phy::Rate {
+                air_rate_bps,
+                fec,
+                overhead_bytes,
+                overhead_us,
+            } => {
+                let bits = bytes as f64 * 8.0 * fec + f64::from(overhead_bytes) * 8.0;
+                (bits / f64::from(air_rate_bps) * 1e6 + overhead_us).ceil() as u64
+            }
+            Phy::Lora {
+                spreading_factor,
+                bandwidth_khz,
+                overhead_us,
+            } => lora_us(spreading_factor, bandwidth_khz, bytes) + overhead_us.ceil() as u64,
         }
-        let Phy::Lora {
-            spreading_factor,
-            bandwidth_khz,
-            overhead_us,
-        } = self.0.phy
-        else {
-            unreachable!("a fixed-rate phy has an air time");
-        };
-        let sf = match spreading_factor {
-            7 => SpreadingFactor::_7,
-            8 => SpreadingFactor::_8,
-            9 => SpreadingFactor::_9,
-            10 => SpreadingFactor::_10,
-            11 => SpreadingFactor::_11,
-            _ => SpreadingFactor::_12,
-        };
-        let bw = match bandwidth_khz {
-            125 => Bandwidth::_125KHz,
-            250 => Bandwidth::_250KHz,
-            _ => Bandwidth::_500KHz,
-        };
-        let params = BaseBandModulationParams::new(sf, bw, CodingRate::_4_5);
-        let len = bytes.min(255) as u8;
-        u64::from(params.time_on_air_us(Some(8), true, len)) + overhead_us.ceil() as u64
     }
+}
+
+/// Semtech's time on air: 8-symbol preamble, explicit header, CRC, coding rate 4/5.
+fn lora_us(spreading_factor: u8, bandwidth_khz: u32, bytes: usize) -> u64 {
+    let sf = match spreading_factor {
+        7 => SpreadingFactor::_7,
+        8 => SpreadingFactor::_8,
+        9 => SpreadingFactor::_9,
+        10 => SpreadingFactor::_10,
+        11 => SpreadingFactor::_11,
+        _ => SpreadingFactor::_12,
+    };
+    let bw = match bandwidth_khz {
+        125 => Bandwidth::_125KHz,
+        250 => Bandwidth::_250KHz,
+        _ => Bandwidth::_500KHz,
+    };
+    let params = BaseBandModulationParams::new(sf, bw, CodingRate::_4_5);
+    u64::from(params.time_on_air_us(Some(8), true, bytes.min(255) as u8))
 }
 
 #[cfg(test)]
@@ -120,6 +130,13 @@ mod tests {
             phy: preset.phy,
             access: Access::Csma,
         }
+    }
+
+    #[test]
+    fn a_fixed_rate_frame_costs_its_coded_bits_and_overhead() {
+        // 40 B on sik-64k: 640 coded bits + 104 overhead bits at 64 kbps, plus 0.5 ms.
+        let us = Air::new(channel("sik-64k")).us(40);
+        assert_eq!(us, (744.0_f64 / 64_000.0 * 1e6 + 500.0).ceil() as u64);
     }
 
     #[test]
