@@ -357,10 +357,9 @@ impl World {
         match l.channel().expect("validated") {
             None => Radio::new(params, rng),
             Some(channel) => {
-                let leader = scenario.robots.iter().position(|r| r.role == Role::Leader);
                 let n = scenario.robots.len();
                 let step_us = u64::from(scenario.sim.physics_step_ms) * 1000;
-                let leader = leader.map(|i| i + 1);
+                let leader = base_station::air::leader_node(scenario);
                 let medium = Medium::new(channel, n, leader, step_us, master.random());
                 Radio::shared(params, medium, rng)
             }

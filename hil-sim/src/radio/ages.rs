@@ -2,7 +2,8 @@
 //! leader-state frame when it reached the robot (from the station handing it to its
 //! radio), and the longest time between two that did.
 
-use protocol::{frame, FrameDecoder, Message};
+use protocol::messages::{LeaderState, Payload};
+use protocol::{frame, FrameDecoder};
 
 use super::{Arrival, NodeId};
 
@@ -43,12 +44,13 @@ impl LeaderStateAges {
     }
 }
 
+/// By its header's message id (the payload is not decoded).
 fn is_leader_state(bytes: &[u8]) -> bool {
     let mut decoder = FrameDecoder::default();
     bytes.iter().any(|b| {
         matches!(
             decoder.push(*b),
-            Some(Ok(raw)) if matches!(frame::parse_unverified(raw), Ok((_, Message::LeaderState(_))))
+            Some(Ok(raw)) if frame::peek_header(raw).is_ok_and(|h| h.id == LeaderState::ID)
         )
     })
 }

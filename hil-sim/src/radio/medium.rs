@@ -114,10 +114,6 @@ impl Medium {
         &self.schedule
     }
 
-    pub fn air(&self) -> Air {
-        self.air
-    }
-
     /// Hands a frame to `from`'s modem at `now_us`.
     pub fn enqueue(&mut self, from: NodeId, bytes: &[u8], to: Vec<NodeId>, now_us: u64) {
         if from >= self.macs.len() {
@@ -134,7 +130,7 @@ impl Medium {
         }
         // The schedule opens each period with the broadcast (the leader state): it goes
         // ahead of the unicast frames waiting.
-        let at = match self.access {
+        let pos = match self.access {
             Access::Scheduled if to.len() > 1 => mac
                 .queue
                 .iter()
@@ -143,7 +139,7 @@ impl Medium {
             _ => mac.queue.len(),
         };
         mac.queue.insert(
-            at,
+            pos,
             Pending {
                 bytes: bytes.to_vec(),
                 to,

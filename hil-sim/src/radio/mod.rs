@@ -144,8 +144,8 @@ impl Radio {
             for t in &to {
                 self.links.entry((from, *t)).or_default().0 += 1;
             }
+            self.stats.frames_sent += to.len() as u64;
             if let Some(medium) = &mut self.medium {
-                self.stats.frames_sent += to.len() as u64;
                 if self.params.loss >= 1.0 {
                     // Silenced: nothing reaches the air.
                     self.stats.frames_lost += to.len() as u64;
@@ -175,9 +175,6 @@ impl Radio {
         let rng = self.rngs.entry(from).or_insert_with(|| {
             ChaCha8Rng::seed_from_u64(seed ^ (from as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15))
         });
-        if self.medium.is_none() {
-            self.stats.frames_sent += 1;
-        }
         if rng.random::<f64>() < p.loss {
             self.stats.frames_lost += 1;
             return;

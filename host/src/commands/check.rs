@@ -152,16 +152,16 @@ fn print_movers(s: &base_station::scenario::Scenario) {
 /// The shared channel, where `[link] radio` names one: air per frame, the load of every
 /// robot at 10 Hz, and the station's schedule.
 fn print_channel(s: &base_station::scenario::Scenario) {
-    use base_station::air::{Air, Schedule, DOWNLINK_FRAME_BYTES, PERIOD_US, UPLINK_FRAME_BYTES};
+    use base_station::air::{
+        leader_node, Air, PeriodLoad, Schedule, DOWNLINK_FRAME_BYTES, UPLINK_FRAME_BYTES,
+    };
     use base_station::scenario::radio::Access;
     let Ok(Some(channel)) = s.link.channel() else {
         return;
     };
     let air = Air::new(channel);
     let (down, up) = (air.us(DOWNLINK_FRAME_BYTES), air.us(UPLINK_FRAME_BYTES));
-    let n = s.robots.len() as u64;
-    // Each period: the leader state and the leader's command down, a report from each robot.
-    let load = (2 * down + n * up) as f64 / PERIOD_US as f64;
+    let load = PeriodLoad::of(&air, s.robots.len()).share();
     println!(
         "channel     {} ({}), {}: {:.1} ms per {DOWNLINK_FRAME_BYTES} B down, {:.1} ms per \
          {UPLINK_FRAME_BYTES} B up; every robot at 10 Hz needs {:.0} % of the air",
@@ -179,11 +179,7 @@ fn print_channel(s: &base_station::scenario::Scenario) {
     if channel.access != Access::Scheduled {
         return;
     }
-    let leader = s
-        .robots
-        .iter()
-        .position(|r| r.role == base_station::scenario::Role::Leader);
-    let schedule = Schedule::of(channel, s.robots.len(), leader.map(|i| i + 1));
+    let schedule = Schedule::of(channel, s.robots.len(), leader_node(s));
     println!(
         "schedule    downlink {:.1} ms, the leader's slot {:.1} ms, {} follower slot(s) of \
          {:.1} ms per 100 ms{}",

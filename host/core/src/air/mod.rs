@@ -41,27 +41,52 @@ pub fn follower_report_every(s: &Scenario) -> u8 {
     let Ok(Some(channel)) = s.link.channel() else {
         return 1;
     };
-    let leader = s
-        .robots
-        .iter()
-        .position(|r| r.role == Role::Leader)
-        .map(|i| i + 1);
     let every = match channel.access {
-        Access::Scheduled => Schedule::of(channel, s.robots.len(), leader).report_every(),
+        Access::Scheduled => Schedule::of(channel, s.robots.len(), leader_node(s)).report_every(),
         Access::Csma | Access::Aloha => {
-            let air = Air::new(channel);
-            let fixed = (2 * air.us(DOWNLINK_FRAME_BYTES) + air.us(UPLINK_FRAME_BYTES)) as f64;
-            let followers = s.robots.len().saturating_sub(1) as f64;
-            let reports = followers * air.us(UPLINK_FRAME_BYTES) as f64;
-            let room = UNSCHEDULED_LOAD * PERIOD_US as f64 - fixed;
+            let load = PeriodLoad::of(&Air::new(channel), s.robots.len());
+            let room = UNSCHEDULED_LOAD * PERIOD_US as f64 - load.fixed_us;
             if room <= 0.0 {
                 MAX_REPORT_EVERY
             } else {
-                (reports / room).ceil() as u64
+                (load.reports_us / room).ceil() as u64
             }
         }
     };
     every.clamp(1, MAX_REPORT_EVERY) as u8
+}
+
+/// The leader's node on the channel (robot `i` of the scenario is node `i + 1`).
+pub fn leader_node(s: &Scenario) -> Option<NodeId> {
+    s.robots
+        .iter()
+        .position(|r| r.role == Role::Leader)
+        .map(|i| i + 1)
+}
+
+/// The air a period's regular traffic takes, µs: the leader state and the leader's
+/// command down and the leader's report (`fixed_us`), and one report from each follower
+/// (`reports_us`, spread over `report_every` periods where they report less often).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PeriodLoad {
+    pub fixed_us: f64,
+    pub reports_us: f64,
+}
+
+impl PeriodLoad {
+    /// For a fleet of `robots`, one of them the leader.
+    pub fn of(air: &Air, robots: usize) -> Self {
+        let up = air.us(UPLINK_FRAME_BYTES);
+        Self {
+            fixed_us: (2 * air.us(DOWNLINK_FRAME_BYTES) + up) as f64,
+            reports_us: robots.saturating_sub(1) as f64 * up as f64,
+        }
+    }
+
+    /// The share of the air it takes with every robot reporting every period.
+    pub fn share(&self) -> f64 {
+        (self.fixed_us + self.reports_us) / PERIOD_US as f64
+    }
 }
 
 /// Air time of a frame.
@@ -71,10 +96,6 @@ pub struct Air(Channel);
 impl Air {
     pub fn new(channel: Channel) -> Self {
         Self(channel)
-    }
-
-    pub fn channel(&self) -> &Channel {
-        &self.0
     }
 
     /// Air time of a frame of `bytes`, µs: a fixed-rate modem's coded bits and

@@ -36,7 +36,7 @@ impl Schedule {
     /// `UPLINK_FRAMES` each period where they fit; else the leader has one and the
     /// followers take one-frame slots in turn. What is left of the period goes to the
     /// downlink.
-    pub fn new(air: &Air, guard_us: u64, leader: Option<NodeId>, followers: Vec<NodeId>) -> Self {
+    fn new(air: &Air, guard_us: u64, leader: Option<NodeId>, followers: Vec<NodeId>) -> Self {
         let frames = (DOWNLINK_FRAMES + followers.len().div_ceil(10)) as u64;
         let down_min = frames * (air.us(DOWNLINK_FRAME_BYTES) + guard_us);
         let down_min = down_min.min(PERIOD_US);
@@ -87,7 +87,7 @@ impl Schedule {
     }
 
     /// `node`'s windows in period `p`: (start, end) of each slot it owns.
-    pub fn windows(&self, node: NodeId, p: u64) -> Vec<(u64, u64)> {
+    fn windows(&self, node: NodeId, p: u64) -> Vec<(u64, u64)> {
         let base = p * PERIOD_US;
         if node == 0 {
             return vec![(base, base + self.down_us)];
