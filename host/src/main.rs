@@ -1,10 +1,12 @@
 //! `basestation`: the operator's program.
 //!
 //! Module map: [`commands`], one module per subcommand (run, sim, robots, check, decode,
-//! robot-config, feed-key, feed-relay) and the flag groups they share; [`live`], what runs
+//! robot-config, feed-key, feed-relay, ops, router) and the flag groups they share; [`live`], what runs
 //! beside a live run (the console, the site's feeds, the recording and live stream, the
-//! loop's timing); [`key`], the fleet key and its one check.
+//! loop's timing); [`bus`], the city's bus (Zenoh) and its operations view; [`key`], the
+//! fleet key and its one check.
 
+mod bus;
 mod commands;
 mod key;
 mod live;
@@ -47,6 +49,12 @@ enum Command {
     /// Seal lines (standard input, a serial port, a TCP stream) with a source's key and
     /// send them to the base station's feed.
     FeedRelay(commands::feed_relay::FeedRelayArgs),
+    /// The operations view: every formation on the bus (Zenoh) on one page, with their
+    /// alerts and commands.
+    Ops(commands::ops::OpsArgs),
+    /// A Zenoh router for the stations and `ops` to meet at (what `zenohd` does, from the
+    /// same configuration file, without its plugins).
+    Router(commands::ops::RouterArgs),
 }
 
 fn main() -> ExitCode {
@@ -67,7 +75,10 @@ fn main() -> ExitCode {
     };
     // A live run says how it goes at the default level: the station's progress (links,
     // fleet ready, shape changes, yielding) and what is wrong (diagnosis, warnings).
-    let live = matches!(cli.command, Command::Run(_) | Command::Robots(_));
+    let live = matches!(
+        cli.command,
+        Command::Run(_) | Command::Robots(_) | Command::Ops(_) | Command::Router(_)
+    );
     let default = match cli.verbose {
         0 if live => "warn,base_station::station=info,basestation::commands::run=info",
         0 => "warn",
@@ -94,6 +105,8 @@ fn main() -> ExitCode {
         Command::RobotConfig(args) => done(commands::robot_config::run(args)),
         Command::FeedKey(args) => done(commands::feed_key::run(args)),
         Command::FeedRelay(args) => done(commands::feed_relay::run(args)),
+        Command::Ops(args) => done(commands::ops::run(args)),
+        Command::Router(args) => done(commands::ops::router(args)),
     };
     match result {
         Ok(outcome) => outcome.map_or(ExitCode::SUCCESS, Outcome::exit_code),

@@ -6,6 +6,7 @@ pub mod check;
 pub mod decode;
 pub mod feed_key;
 pub mod feed_relay;
+pub mod ops;
 pub mod outcome;
 pub mod robot_config;
 pub mod robots;
@@ -190,6 +191,41 @@ pub struct ServeArgs {
     /// Lichtblick's web apps (repeatable; clients that send no Origin always may).
     #[arg(long, value_name = "ORIGIN", requires = "live")]
     pub live_origin: Vec<String>,
+    /// Publish the formation on the city's bus with Zenoh's configuration file (JSON5),
+    /// and take commands from it (docs/operating.md#a-citys-fleet-on-zenoh).
+    #[arg(long, value_name = "CONFIG")]
+    pub zenoh: Option<PathBuf>,
+    /// With --zenoh: the site this formation works in (a chunk of its keys).
+    #[arg(long, value_name = "NAME", default_value = "site", requires = "zenoh")]
+    pub site: String,
+    /// With --zenoh: the formation's name on the bus [default: the scenario's name].
+    #[arg(long, value_name = "NAME", requires = "zenoh")]
+    pub formation: Option<String>,
+}
+
+impl ServeArgs {
+    /// The bus, when `--zenoh` is given, as this scenario's formation.
+    pub fn bus(
+        &self,
+        scenario: &Scenario,
+    ) -> anyhow::Result<Option<crate::bus::station::StationBus>> {
+        let Some(path) = &self.zenoh else {
+            return Ok(None);
+        };
+        let config = crate::bus::load_config(path)?;
+        let name = self.formation.as_deref().unwrap_or(&scenario.name);
+        let formation = crate::bus::keys::Formation::new(&self.site, name)
+            .map_err(|e| anyhow::anyhow!("--site/--formation: {e}"))?;
+        let map = crate::live::console::map_json(scenario);
+        eprintln!(
+            "bus: publishing as {} ({})",
+            formation.label(),
+            path.display()
+        );
+        Ok(Some(crate::bus::station::StationBus::open(
+            config, formation, map,
+        )?))
+    }
 }
 
 #[cfg(test)]

@@ -118,6 +118,7 @@ struct Live {
     localization: Option<crate::live::feeds::localization::Localization>,
     scans: Option<crate::live::feeds::scan::ScanFeed>,
     console: Option<crate::live::console::Console>,
+    bus: Option<crate::bus::station::StationBus>,
     recording: Option<crate::live::recording::LiveRecording>,
     start: Instant,
     /// The station clock's zero on the Unix clock: fixes are stamped with the latter.
@@ -163,6 +164,7 @@ impl Live {
             .map(|addr| crate::live::feeds::scan::ScanFeed::open(addr, &key, allow.clone()))
             .transpose()?;
         let console = crate::live::console::Console::open(args.serve.console, scenario)?;
+        let bus = args.serve.bus(scenario)?;
         let recording = match (&args.mcap, args.serve.live) {
             (None, None) => None,
             (mcap, live) => Some(crate::live::recording::LiveRecording::create(
@@ -180,6 +182,7 @@ impl Live {
             localization,
             scans,
             console,
+            bus,
             recording,
             start,
             start_unix_ms: super::unix_ms()?,
@@ -247,9 +250,21 @@ impl Live {
                 self.station.operator(command, now_ms);
             }
         }
+        if let Some(bus) = &self.bus {
+            for c in bus.commands() {
+                let done = crate::bus::station::obey(&mut self.station, c.command, now_ms);
+                bus.answer(c.id, done);
+            }
+        }
         self.station.step(now_ms);
-        if let Some(console) = &self.console {
-            console.publish(&crate::live::console::snapshot(&self.station, now_ms));
+        if self.console.is_some() || self.bus.is_some() {
+            let snapshot = crate::live::console::snapshot(&self.station, now_ms);
+            if let Some(console) = &self.console {
+                console.publish(&snapshot);
+            }
+            if let Some(bus) = self.bus.as_mut() {
+                bus.publish(&snapshot);
+            }
         }
         let out = self.station.take_outbox();
         self.transport.send(&out);
@@ -329,10 +344,14 @@ impl Live {
         }
         eprintln!("{}", ending.why());
         let outcome = super::outcome::Outcome::of(&ending);
+        // The page and the bus say the run finished and how, not that the station is gone.
+        let last = crate::live::console::snapshot(&self.station, self.now_ms());
+        let last = crate::live::console::finished(last, &ending.why());
+        if let Some(bus) = self.bus.as_mut() {
+            bus.publish(&last);
+        }
         if let Some(console) = self.console.as_ref().filter(|c| c.alive()) {
-            // The page says the run finished and how, not that the station is gone.
-            let last = crate::live::console::snapshot(&self.station, self.now_ms());
-            console.publish(&crate::live::console::finished(last, &ending.why()));
+            console.publish(&last);
             std::thread::sleep(crate::live::console::FINISHED_SHOWN);
         }
         if outcome == super::outcome::Outcome::NeverLinked {

@@ -83,11 +83,12 @@ fn parse_fault(text: &str) -> anyhow::Result<base_station::scenario::FaultSpec> 
 }
 
 pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
-    if !args.realtime && (args.serve.console.is_some() || args.serve.live.is_some()) {
+    let serves = args.serve.console.is_some() || args.serve.live.is_some();
+    if !args.realtime && (serves || args.serve.zenoh.is_some()) {
         // A bad command line, as clap's own: exit code 2 (README.md#exit-codes).
         clap::Error::raw(
             clap::error::ErrorKind::MissingRequiredArgument,
-            "--console and --live need --realtime (a run no faster than the wall clock)\n",
+            "--console, --live and --zenoh need --realtime (a run no faster than the wall clock)\n",
         )
         .exit();
     }
@@ -101,7 +102,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     let mut watch = Watch::open(&args, &scenario, &mcap_path)?;
     let empty_site = (scenario.clone(), options.clone());
     let result = simulate_with(scenario, options, |world| watch.step(world));
-    let (console, interrupted, recording) = watch.close()?;
+    let (console, bus, interrupted, recording) = watch.close()?;
     let (mut report, world) = result.context("the simulation failed")?;
     report.movers.time_to_goal_empty_s =
         hil_sim::run::empty_site_time(&empty_site.0, &empty_site.1)
@@ -119,9 +120,13 @@ pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     print_table(&report, &report_path, &plot_path, &mcap_path);
     let ending = world.station.ending(world.base_ms(), interrupted);
     let outcome = super::outcome::Outcome::of(&ending);
+    let last = crate::live::console::snapshot(&world.station, world.base_ms());
+    let last = crate::live::console::finished(last, &ending.why());
+    if let Some(mut bus) = bus {
+        bus.publish(&last);
+    }
     if let Some(console) = console.as_ref().filter(|c| c.alive()) {
-        let last = crate::live::console::snapshot(&world.station, world.base_ms());
-        console.publish(&crate::live::console::finished(last, &ending.why()));
+        console.publish(&last);
         std::thread::sleep(crate::live::console::FINISHED_SHOWN);
     }
     if interrupted {
@@ -221,6 +226,7 @@ struct Watch {
     bar: indicatif::ProgressBar,
     end_s: f64,
     console: Option<crate::live::console::Console>,
+    bus: Option<crate::bus::station::StationBus>,
     live: Option<crate::live::recording::LiveRecording>,
     live_sent: usize,
     recording: Option<Result<Recording, String>>,
@@ -228,10 +234,11 @@ struct Watch {
     interrupted: Arc<AtomicBool>,
 }
 
-/// What [`Watch::close`] hands back: the console, whether the run was interrupted, the
-/// recording.
+/// What [`Watch::close`] hands back: the console, the bus, whether the run was interrupted,
+/// the recording.
 type Watched = (
     Option<crate::live::console::Console>,
+    Option<crate::bus::station::StationBus>,
     bool,
     Option<Result<Recording, String>>,
 );
@@ -273,6 +280,7 @@ impl Watch {
             bar,
             end_s: scenario.sim.duration_s,
             console: crate::live::console::Console::open(args.serve.console, scenario)?,
+            bus: args.serve.bus(scenario)?,
             live,
             live_sent: 0,
             recording: None,
@@ -292,13 +300,23 @@ impl Watch {
         if world.t_us.is_multiple_of(100_000) {
             self.show_progress(world);
         }
-        if let Some(console) = self.console.as_ref().filter(|c| c.alive()) {
-            let now_ms = world.base_ms();
-            for command in console.commands() {
-                world.station.operator(command, now_ms);
+        let now_ms = world.base_ms();
+        let console = self.console.as_ref().filter(|c| c.alive());
+        for command in console.map(|c| c.commands()).unwrap_or_default() {
+            world.station.operator(command, now_ms);
+        }
+        if let Some(bus) = &self.bus {
+            for c in bus.commands() {
+                let done = crate::bus::station::obey(&mut world.station, c.command, now_ms);
+                bus.answer(c.id, done);
             }
-            if world.t_us.is_multiple_of(100_000) {
-                let mut snapshot = crate::live::console::snapshot(&world.station, now_ms);
+        }
+        if world.t_us.is_multiple_of(100_000) && (console.is_some() || self.bus.is_some()) {
+            let mut snapshot = crate::live::console::snapshot(&world.station, now_ms);
+            if let Some(bus) = self.bus.as_mut() {
+                bus.publish(&snapshot);
+            }
+            if let Some(console) = console {
                 snapshot["movers"] = movers_json(world);
                 console.publish(&snapshot);
             }
@@ -337,7 +355,7 @@ impl Watch {
         }
         self.bar.finish_and_clear();
         let interrupted = self.interrupted.load(Ordering::SeqCst);
-        Ok((self.console, interrupted, self.recording))
+        Ok((self.console, self.bus, interrupted, self.recording))
     }
 }
 

@@ -10,9 +10,9 @@
 //! or the session cookie it gives, requests that change something from the console's own
 //! origin as JSON), on the loopback as on the network.
 
-mod guard;
+pub mod guard;
 pub use guard::same;
-mod server;
+pub mod server;
 
 use std::net::{IpAddr, SocketAddr};
 use std::sync::mpsc::{self, Receiver};
@@ -30,7 +30,7 @@ const EVENTS_SHOWN: usize = 30;
 const TRACKS_SHOWN: usize = 150;
 
 pub struct Console {
-    shared: Arc<server::Shared>,
+    shared: Arc<server::Shared<server::Station>>,
     commands: Receiver<OperatorCommand>,
     thread: JoinHandle<()>,
     /// The page with its pairing code, on the first of the console's addresses.
@@ -43,7 +43,7 @@ pub struct Console {
 
 /// The addresses a listener bound to `bound` answers on: `bound`'s own, or every
 /// interface's of its family when it is the unspecified address. Non-loopback first.
-fn reachable_at(bound: SocketAddr) -> Vec<IpAddr> {
+pub fn reachable_at(bound: SocketAddr) -> Vec<IpAddr> {
     let ip = bound.ip();
     if !ip.is_unspecified() {
         return vec![ip];
@@ -74,7 +74,7 @@ fn reachable_at(bound: SocketAddr) -> Vec<IpAddr> {
     addresses
 }
 
-fn url_of(ip: IpAddr, port: u16) -> String {
+pub fn url_of(ip: IpAddr, port: u16) -> String {
     match ip {
         IpAddr::V4(v4) => format!("http://{v4}:{port}/"),
         IpAddr::V6(v6) => format!("http://[{v6}]:{port}/"),
@@ -95,26 +95,13 @@ impl Console {
         let (tx, commands) = mpsc::sync_channel(server::COMMANDS);
         let shared = Arc::new(server::Shared {
             guard,
-            snapshot: Mutex::new(Arc::from("{}")),
-            map: Arc::from(map.to_string()),
-            commands: tx,
+            backend: server::Station {
+                snapshot: Mutex::new(Arc::from("{}")),
+                map: Arc::from(map.to_string()),
+                commands: tx,
+            },
         });
-        let serving = shared.clone();
-        let thread = std::thread::Builder::new()
-            .name("console".into())
-            .spawn(move || {
-                let runtime = match tokio::runtime::Builder::new_current_thread()
-                    .enable_all()
-                    .build()
-                {
-                    Ok(r) => r,
-                    Err(e) => return tracing::error!("console: no runtime: {e}"),
-                };
-                if let Err(e) = runtime.block_on(server::serve(listener, serving)) {
-                    tracing::error!("console: {e}");
-                }
-            })
-            .context("cannot start the console's thread")?;
+        let thread = server::spawn("console", listener, shared.clone())?;
         Ok(Self {
             shared,
             commands,
@@ -153,7 +140,7 @@ impl Console {
     /// The fleet as the page shows it now.
     pub fn publish(&self, snapshot: &Value) {
         let text: Arc<str> = Arc::from(snapshot.to_string());
-        if let Ok(mut s) = self.shared.snapshot.lock() {
+        if let Ok(mut s) = self.shared.backend.snapshot.lock() {
             *s = text;
         }
     }
@@ -179,7 +166,7 @@ impl Console {
     }
 }
 
-fn parse_command(body: &str) -> Option<OperatorCommand> {
+pub fn parse_command(body: &str) -> Option<OperatorCommand> {
     let v: Value = serde_json::from_str(body).ok()?;
     match v.get("command")?.as_str()? {
         "stop" => Some(OperatorCommand::Stop),
@@ -291,6 +278,7 @@ pub fn snapshot(station: &BaseStation, now_ms: u32) -> Value {
         "arrived": station.arrived(),
         "progress": station.progress(now_ms),
         "events": events,
+        "events_total": station.events().len(),
         "tracks": tracks,
     })
 }

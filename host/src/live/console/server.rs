@@ -43,9 +43,29 @@ pub const COMMANDS: usize = 16;
 
 const PAGE: &str = include_str!("page.html");
 
-/// What the station's loop and the server share.
-pub struct Shared {
+/// What a page served this way shows and takes: the station's console, `ops`'s view.
+pub trait Backend: Send + Sync + 'static {
+    /// The page (HTML with its script).
+    fn page(&self) -> &'static str;
+    /// The slow-changing picture (JSON): maps, routes.
+    fn map(&self) -> String;
+    /// The state as the page shows it now (JSON).
+    fn state(&self) -> String;
+    /// A command's body (JSON, at most [`MAX_BODY`] bytes): what the page is told.
+    fn command(
+        &self,
+        body: Bytes,
+    ) -> impl std::future::Future<Output = Response<Full<Bytes>>> + Send;
+}
+
+/// Who may use the page, and what it serves.
+pub struct Shared<B> {
     pub guard: Guard,
+    pub backend: B,
+}
+
+/// The station's console: what its loop and the server share.
+pub struct Station {
     /// The fleet as the page shows it now (JSON), swapped whole by the station's loop.
     pub snapshot: Mutex<Arc<str>>,
     /// The site's static picture (JSON).
@@ -53,8 +73,54 @@ pub struct Shared {
     pub commands: SyncSender<OperatorCommand>,
 }
 
+impl Backend for Station {
+    fn page(&self) -> &'static str {
+        PAGE
+    }
+
+    fn map(&self) -> String {
+        self.map.to_string()
+    }
+
+    fn state(&self) -> String {
+        let snapshot = self.snapshot.lock().map(|s| s.clone());
+        snapshot.map(|s| s.to_string()).unwrap_or_default()
+    }
+
+    async fn command(&self, body: Bytes) -> Response<Full<Bytes>> {
+        command(self, &body)
+    }
+}
+
+/// Serves `listener` on a thread named `name` with a runtime of its own.
+pub fn spawn<B: Backend>(
+    name: &str,
+    listener: std::net::TcpListener,
+    shared: Arc<Shared<B>>,
+) -> anyhow::Result<std::thread::JoinHandle<()>> {
+    let label = name.to_string();
+    std::thread::Builder::new()
+        .name(label.clone())
+        .spawn(move || {
+            let runtime = match tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+            {
+                Ok(r) => r,
+                Err(e) => return tracing::error!("{label}: no runtime: {e}"),
+            };
+            if let Err(e) = runtime.block_on(serve(listener, shared)) {
+                tracing::error!("{label}: {e}");
+            }
+        })
+        .map_err(|e| anyhow::anyhow!("cannot start the {name}'s thread: {e}"))
+}
+
 /// Serves `listener` until the process ends.
-pub async fn serve(listener: std::net::TcpListener, shared: Arc<Shared>) -> std::io::Result<()> {
+pub async fn serve<B: Backend>(
+    listener: std::net::TcpListener,
+    shared: Arc<Shared<B>>,
+) -> std::io::Result<()> {
     listener.set_nonblocking(true)?;
     crate::live::admission::deepen(&listener, BACKLOG);
     let listener = tokio::net::TcpListener::from_std(listener)?;
@@ -129,7 +195,7 @@ fn known(guard: &Guard, head: &[u8]) -> bool {
     guard.knows(&map)
 }
 
-fn respond(status: u16, content_type: &str, body: impl Into<Bytes>) -> Response<Full<Bytes>> {
+pub fn respond(status: u16, content_type: &str, body: impl Into<Bytes>) -> Response<Full<Bytes>> {
     let mut r = Response::new(Full::new(body.into()));
     *r.status_mut() = StatusCode::from_u16(status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
     let h = r.headers_mut();
@@ -152,7 +218,7 @@ fn respond(status: u16, content_type: &str, body: impl Into<Bytes>) -> Response<
     r
 }
 
-fn json(status: u16, body: String) -> Response<Full<Bytes>> {
+pub fn json(status: u16, body: String) -> Response<Full<Bytes>> {
     respond(status, "application/json", body)
 }
 
@@ -161,7 +227,7 @@ fn refused(why: Refusal) -> Response<Full<Bytes>> {
 }
 
 /// A request's body, if it is within [`MAX_BODY`] and comes within [`BODY_TIMEOUT`].
-async fn body(request: Request<Incoming>) -> Result<Bytes, Response<Full<Bytes>>> {
+pub async fn body(request: Request<Incoming>) -> Result<Bytes, Response<Full<Bytes>>> {
     let limited = Limited::new(request.into_body(), MAX_BODY);
     match tokio::time::timeout(BODY_TIMEOUT, limited.collect()).await {
         Ok(Ok(collected)) => Ok(collected.to_bytes()),
@@ -172,8 +238,8 @@ async fn body(request: Request<Incoming>) -> Result<Bytes, Response<Full<Bytes>>
 
 /// One request from `peer` on a connection whose `paired` flag it sets when it shows it
 /// is paired.
-async fn handle(
-    shared: &Shared,
+async fn handle<B: Backend>(
+    shared: &Shared<B>,
     peer: SocketAddr,
     paired: &AtomicBool,
     request: Request<Incoming>,
@@ -184,7 +250,7 @@ async fn handle(
     }
     let path = request.uri().path().to_string();
     match (request.method().clone(), path.as_str()) {
-        (Method::GET, "/") => respond(200, "text/html; charset=utf-8", PAGE),
+        (Method::GET, "/") => respond(200, "text/html; charset=utf-8", shared.backend.page()),
         (Method::POST, "/api/pair") => {
             if let Err(why) = g.check_write(request.headers()) {
                 return refused(why);
@@ -217,12 +283,17 @@ async fn handle(
             }
             paired.store(true, Ordering::Relaxed);
             match (method, path.as_str()) {
-                (Method::GET, "/api/map") => json(200, shared.map.to_string()),
-                (Method::GET, "/api/state") => {
-                    let snapshot = shared.snapshot.lock().map(|s| s.clone());
-                    json(200, snapshot.map(|s| s.to_string()).unwrap_or_default())
+                (Method::GET, "/api/map") => json(200, shared.backend.map()),
+                (Method::GET, "/api/state") => json(200, shared.backend.state()),
+                (Method::POST, "/api/command") => {
+                    if let Err(why) = g.check_write(request.headers()) {
+                        return refused(why);
+                    }
+                    match body(request).await {
+                        Ok(bytes) => shared.backend.command(bytes).await,
+                        Err(r) => r,
+                    }
                 }
-                (Method::POST, "/api/command") => command(shared, request).await,
                 _ => respond(405, "text/plain", "method not allowed"),
             }
         }
@@ -230,15 +301,8 @@ async fn handle(
     }
 }
 
-async fn command(shared: &Shared, request: Request<Incoming>) -> Response<Full<Bytes>> {
-    if let Err(why) = shared.guard.check_write(request.headers()) {
-        return refused(why);
-    }
-    let bytes = match body(request).await {
-        Ok(b) => b,
-        Err(r) => return r,
-    };
-    let Some(c) = std::str::from_utf8(&bytes)
+fn command(station: &Station, bytes: &[u8]) -> Response<Full<Bytes>> {
+    let Some(c) = std::str::from_utf8(bytes)
         .ok()
         .and_then(super::parse_command)
     else {
@@ -248,7 +312,7 @@ async fn command(shared: &Shared, request: Request<Incoming>) -> Response<Full<B
             "expected {\"command\": \"stop\" | \"emergency_stop\" | \"resume\"}",
         );
     };
-    if c == OperatorCommand::Resume && halted(shared) {
+    if c == OperatorCommand::Resume && halted(station) {
         return respond(
             409,
             "text/plain",
@@ -256,7 +320,7 @@ async fn command(shared: &Shared, request: Request<Incoming>) -> Response<Full<B
              clear the fault and start the run again",
         );
     }
-    match shared.commands.try_send(c) {
+    match station.commands.try_send(c) {
         Ok(()) => json(200, format!("{{\"sent\":\"{}\"}}", c.name())),
         Err(TrySendError::Full(_)) => respond(503, "text/plain", "too many commands waiting"),
         Err(TrySendError::Disconnected(_)) => respond(410, "text/plain", "the run has ended"),
@@ -264,8 +328,8 @@ async fn command(shared: &Shared, request: Request<Incoming>) -> Response<Full<B
 }
 
 /// Whether the last snapshot says the fleet halted for good: Resume cannot lift that.
-fn halted(shared: &Shared) -> bool {
-    let Ok(snapshot) = shared.snapshot.lock().map(|s| s.clone()) else {
+fn halted(station: &Station) -> bool {
+    let Ok(snapshot) = station.snapshot.lock().map(|s| s.clone()) else {
         return false;
     };
     serde_json::from_str::<serde_json::Value>(&snapshot).is_ok_and(|s| s["gate"] == "halted")

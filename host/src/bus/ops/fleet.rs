@@ -1,0 +1,283 @@
+//! What `ops` knows of every formation on the bus: the last sample of each key, whether its
+//! station is live, and the alerts an operations team acts on. Fed by the bus's samples and
+//! liveliness changes; read as the page's JSON. Time here is the wall clock's (`Instant`):
+//! `ops` watches live fleets, it simulates nothing.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+
+use crate::bus::keys::{self, Formation, Topic};
+
+/// Events kept per formation.
+const EVENTS_KEPT: usize = 8;
+/// A live station that published nothing for this long is shown as silent.
+pub const SILENT_AFTER: Duration = Duration::from_secs(2);
+
+/// Whether a formation's station is on the bus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Presence {
+    /// Seen in samples, its liveliness not yet known.
+    Unknown,
+    Live,
+    Lost {
+        since: Instant,
+    },
+}
+
+#[derive(Default)]
+struct Robot {
+    pose: Value,
+    state: Value,
+    link: Value,
+}
+
+struct View {
+    presence: Presence,
+    formation: Value,
+    robots: BTreeMap<u16, Robot>,
+    route: Value,
+    map: Value,
+    events: VecDeque<Value>,
+    last_sample: Option<Instant>,
+    /// Bumped when the map or the route changes: the page fetches them again.
+    rev: u64,
+}
+
+impl View {
+    fn new() -> Self {
+        Self {
+            presence: Presence::Unknown,
+            formation: Value::Null,
+            robots: BTreeMap::new(),
+            route: Value::Null,
+            map: Value::Null,
+            events: VecDeque::new(),
+            last_sample: None,
+            rev: 0,
+        }
+    }
+}
+
+/// Every formation `ops` has seen since it started (or learnt of from the bus's memory).
+#[derive(Default)]
+pub struct Fleet {
+    views: BTreeMap<Formation, View>,
+    /// Samples taken, and those whose payload was not what the key space says.
+    pub samples: u64,
+    pub malformed: u64,
+}
+
+impl Fleet {
+    /// A sample on `key`; `fresh` is false for an answer to the start-up query, which never
+    /// replaces what a live sample brought.
+    pub fn sample(&mut self, key: &str, payload: &[u8], now: Instant, fresh: bool) {
+        let Some((formation, topic)) = keys::parse(key) else {
+            return;
+        };
+        let Ok(value) = serde_json::from_slice::<Value>(payload) else {
+            self.malformed += 1;
+            return;
+        };
+        self.samples += 1;
+        let view = self.views.entry(formation).or_insert_with(View::new);
+        view.last_sample = Some(now);
+        let slow = matches!(topic, Topic::Route | Topic::Map);
+        let slot = match topic {
+            Topic::Formation => &mut view.formation,
+            Topic::Route => &mut view.route,
+            Topic::Map => &mut view.map,
+            Topic::Events => {
+                view.events.push_back(value);
+                if view.events.len() > EVENTS_KEPT {
+                    view.events.pop_front();
+                }
+                return;
+            }
+            Topic::Robot { id, topic } => {
+                let robot = view.robots.entry(id).or_default();
+                match topic.as_str() {
+                    "pose" => &mut robot.pose,
+                    "state" => &mut robot.state,
+                    "link" => &mut robot.link,
+                    _ => return,
+                }
+            }
+            Topic::Station | Topic::Command => return,
+        };
+        if !fresh && !slot.is_null() {
+            return;
+        }
+        if slow && *slot != value {
+            view.rev += 1;
+        }
+        *slot = value;
+    }
+
+    /// A station's liveliness token came (`live`) or went.
+    pub fn presence(&mut self, key: &str, live: bool, now: Instant) {
+        let Some((formation, Topic::Station)) = keys::parse(key) else {
+            return;
+        };
+        let view = self.views.entry(formation).or_insert_with(View::new);
+        view.presence = if live {
+            Presence::Live
+        } else {
+            Presence::Lost { since: now }
+        };
+    }
+
+    /// The page's state: every formation, by site, with its alerts.
+    pub fn state(&self, now: Instant) -> Value {
+        let mut all_alerts = Vec::new();
+        let formations: Vec<Value> = self
+            .views
+            .iter()
+            .map(|(f, v)| {
+                let alerts = alerts(v, now);
+                for a in &alerts {
+                    all_alerts.push(json!({ "formation": f.label(), "alert": a }));
+                }
+                view_json(f, v, alerts, now)
+            })
+            .collect();
+        json!({
+            "formations": formations,
+            "alerts": all_alerts,
+            "samples": self.samples,
+            "malformed": self.malformed,
+        })
+    }
+
+    /// Every formation's map and route, for the page to draw under the robots.
+    pub fn maps(&self) -> Value {
+        let maps: serde_json::Map<String, Value> = self
+            .views
+            .iter()
+            .map(|(f, v)| {
+                let m = json!({ "map": v.map, "route": v.route["points"], "rev": v.rev });
+                (f.label(), m)
+            })
+            .collect();
+        Value::Object(maps)
+    }
+
+    /// The formations `ops` knows, by label.
+    pub fn labels(&self) -> Vec<String> {
+        self.views.keys().map(Formation::label).collect()
+    }
+}
+
+fn view_json(f: &Formation, v: &View, alerts: Vec<String>, now: Instant) -> Value {
+    let (station, lost_for_s) = match v.presence {
+        Presence::Unknown => ("unknown", None),
+        Presence::Live => ("live", None),
+        Presence::Lost { since } => ("lost", Some(now.duration_since(since).as_secs_f64())),
+    };
+    let robots: Vec<Value> = v
+        .robots
+        .iter()
+        .map(|(id, r)| json!({ "id": id, "pose": r.pose, "state": r.state, "link": r.link }))
+        .collect();
+    json!({
+        "site": f.site,
+        "name": f.name,
+        "label": f.label(),
+        "station": station,
+        "lost_for_s": lost_for_s,
+        "quiet_s": v.last_sample.map(|t| now.duration_since(t).as_secs_f64()),
+        "formation": v.formation,
+        "robots": robots,
+        "events": v.events,
+        "alerts": alerts,
+        "rev": v.rev,
+    })
+}
+
+/// What an operations team must see of one formation: a lost station, a halted or
+/// stopped formation, a robot whose link is lost, a station gone quiet.
+fn alerts(v: &View, now: Instant) -> Vec<String> {
+    let mut alerts = Vec::new();
+    if let Presence::Lost { .. } = v.presence {
+        alerts.push("station lost".to_string());
+    }
+    let f = &v.formation;
+    if f["finished"].is_null() {
+        match f["gate"].as_str() {
+            Some("halted") => alerts.push("formation halted".into()),
+            Some("leader_lost") => alerts.push("leader lost: followers stopped".into()),
+            _ => {}
+        }
+        if let Some(hold) = f["hold"].as_str() {
+            alerts.push(format!("held by the operator ({})", hold.replace('_', " ")));
+        }
+    }
+    if v.presence == Presence::Live {
+        let quiet = v.last_sample.map(|t| now.duration_since(t));
+        if quiet.is_some_and(|q| q > SILENT_AFTER) {
+            alerts.push("station live but silent".into());
+        }
+        for (id, r) in &v.robots {
+            let late = match (
+                r.link["seen_ms_ago"].as_f64(),
+                r.link["lost_after_ms"].as_f64(),
+            ) {
+                (Some(seen), Some(limit)) => seen > limit,
+                _ => false,
+            };
+            if r.link["linked"] == json!(false) || late {
+                alerts.push(format!("robot {id} lost"));
+            }
+        }
+    }
+    alerts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_build_a_view_and_alerts_follow() {
+        let mut fleet = Fleet::default();
+        let t0 = Instant::now();
+        fleet.presence("sweeper/north/a/station", true, t0);
+        fleet.sample(
+            "sweeper/north/a/formation",
+            br#"{"gate":"running","hold":null}"#,
+            t0,
+            true,
+        );
+        fleet.sample(
+            "sweeper/north/a/robot/2/link",
+            br#"{"linked":true,"seen_ms_ago":900,"lost_after_ms":500}"#,
+            t0,
+            true,
+        );
+        fleet.sample("sweeper/north/a/robot/2/pose", b"not json", t0, true);
+        let s = fleet.state(t0);
+        assert_eq!(s["formations"][0]["station"], "live");
+        assert_eq!(s["alerts"][0]["alert"], "robot 2 lost");
+        assert_eq!((fleet.samples, fleet.malformed), (2, 1));
+        // The station goes: lost, and its robots' links are no longer judged.
+        fleet.presence("sweeper/north/a/station", false, t0);
+        let s = fleet.state(t0 + SILENT_AFTER * 2);
+        assert_eq!(s["formations"][0]["alerts"], json!(["station lost"]));
+    }
+
+    #[test]
+    fn a_start_up_answer_never_replaces_a_live_sample() {
+        let mut fleet = Fleet::default();
+        let t0 = Instant::now();
+        fleet.sample("sweeper/s/f/formation", br#"{"gate":"running"}"#, t0, true);
+        fleet.sample("sweeper/s/f/formation", br#"{"gate":"waiting"}"#, t0, false);
+        assert_eq!(
+            fleet.state(t0)["formations"][0]["formation"]["gate"],
+            "running"
+        );
+        fleet.sample("sweeper/s/g/route", br#"{"points":[[0,0]]}"#, t0, false);
+        assert_eq!(fleet.maps()["s/g"]["rev"], 1);
+        assert_eq!(fleet.labels(), ["s/f", "s/g"]);
+    }
+}

@@ -1,0 +1,115 @@
+//! `basestation ops`: every formation of the bus on one page (crate::bus::ops), and
+//! `basestation router`: a Zenoh router for the stations and `ops` to meet at.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::Context;
+use clap::Args;
+use zenoh::Wait;
+
+use crate::bus;
+use crate::live::console::{guard::Guard, reachable_at, server, url_of};
+
+/// Where `ops` and `router` listen when no configuration file says.
+pub const DEFAULT_BUS: &str = "tcp/127.0.0.1:7447";
+
+#[derive(Args, Debug)]
+pub struct OpsArgs {
+    /// Zenoh's configuration for `ops` (JSON5, docs/operating.md#a-citys-fleet-on-zenoh).
+    /// Without it, `ops` is the router itself, listening on --bus.
+    #[arg(long, value_name = "CONFIG")]
+    pub zenoh: Option<PathBuf>,
+    /// Without --zenoh: the endpoint `ops`'s own router listens on.
+    #[arg(long, value_name = "ENDPOINT", default_value = DEFAULT_BUS)]
+    pub bus: String,
+    /// Serve the operations page on ADDR.
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:8090")]
+    pub page: SocketAddr,
+}
+
+#[derive(Args, Debug)]
+pub struct RouterArgs {
+    /// Zenoh's router configuration (JSON5, as `zenohd -c` reads it). Without it, a router
+    /// with no access control listening on --bus.
+    #[arg(long, value_name = "CONFIG")]
+    pub zenoh: Option<PathBuf>,
+    /// Without --zenoh: the endpoint to listen on.
+    #[arg(long, value_name = "ENDPOINT", default_value = DEFAULT_BUS)]
+    pub bus: String,
+}
+
+/// `config`'s file, or a router on `endpoint` (the loopback by default: a router open to
+/// the network without access control is for a file to configure, not a default).
+fn config_or_router(config: Option<&PathBuf>, endpoint: &str) -> anyhow::Result<zenoh::Config> {
+    if let Some(path) = config {
+        return bus::load_config(path);
+    }
+    let mut c = zenoh::Config::default();
+    let set = |c: &mut zenoh::Config, key: &str, value: &str| {
+        c.insert_json5(key, value)
+            .map_err(|e| anyhow::anyhow!("{key}: {e}"))
+    };
+    set(&mut c, "mode", "\"router\"")?;
+    set(&mut c, "listen/endpoints", &format!("[\"{endpoint}\"]"))?;
+    set(&mut c, "scouting/multicast/enabled", "false")?;
+    Ok(c)
+}
+
+/// Until Ctrl-C or SIGTERM.
+fn wait_for_interrupt() -> anyhow::Result<()> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing Ctrl-C")?;
+    while !stop.load(Ordering::SeqCst) {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    Ok(())
+}
+
+pub fn run(args: OpsArgs) -> anyhow::Result<()> {
+    let config = config_or_router(args.zenoh.as_ref(), &args.bus)?;
+    let ops = bus::ops::Ops::join(config)?;
+    if args.zenoh.is_none() {
+        eprintln!("ops: the bus's router is this process, on {}", args.bus);
+    }
+    let listener = std::net::TcpListener::bind(args.page)
+        .with_context(|| format!("cannot serve the operations page on {}", args.page))?;
+    let bound = listener.local_addr()?;
+    let addresses = reachable_at(bound);
+    let guard = Guard::new(bound, &addresses)?;
+    let urls: Vec<String> = addresses.iter().map(|a| url_of(*a, bound.port())).collect();
+    eprintln!("ops: {}#pair={}", urls[0], guard.code());
+    eprintln!(
+        "ops: pairing code {} (open {})",
+        guard.code(),
+        urls.join(" or ")
+    );
+    if let Ok(fleet) = ops.fleet.lock() {
+        let known = fleet.labels();
+        eprintln!(
+            "ops: {} formation(s) on the bus: {}",
+            known.len(),
+            known.join(", ")
+        );
+    }
+    let shared = Arc::new(server::Shared {
+        guard,
+        backend: ops.backend(),
+    });
+    let _page = server::spawn("ops page", listener, shared)?;
+    wait_for_interrupt()
+}
+
+pub fn router(args: RouterArgs) -> anyhow::Result<()> {
+    let config = config_or_router(args.zenoh.as_ref(), &args.bus)?;
+    let session = zenoh::open(config)
+        .wait()
+        .map_err(|e| anyhow::anyhow!("cannot start the router: {e}"))?;
+    eprintln!("router: up as {}", session.zid());
+    wait_for_interrupt()?;
+    let _ = session.close().wait();
+    Ok(())
+}
