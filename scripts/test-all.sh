@@ -31,6 +31,12 @@ if ! command -v chromium >/dev/null 2>&1; then
     fi
 fi
 
+step "eclipse-zenoh for python3 (a client nobody here wrote, for the bus test)"
+if ! python3 -c "import zenoh" >/dev/null 2>&1; then
+    python3 -m pip install --quiet eclipse-zenoh==1.10.2 ||
+        echo "could not install eclipse-zenoh: the bus test's Python client will say it skipped" >&2
+fi
+
 step "firmware for both boards (QEMU mps2-an386, NUCLEO-F411RE), size budget"
 ./scripts/build-firmware.sh
 

@@ -210,19 +210,18 @@ impl Worker {
         }
         self.periods += 1;
         for (key, value) in samples {
-            self.put(key, &value, true);
+            self.put(key, &value);
         }
+        // The cache keeps the last event: a late joiner sees what happened last.
         for event in new_events {
-            self.put(f.key("events"), &event, false);
+            self.put(f.key("events"), &event);
         }
     }
 
-    fn put(&mut self, key: String, value: &Value, keep: bool) {
+    fn put(&mut self, key: String, value: &Value) {
         let bytes = value.to_string().into_bytes();
-        if keep {
-            if let Ok(mut latest) = self.latest.lock() {
-                latest.insert(key.clone(), bytes.clone());
-            }
+        if let Ok(mut latest) = self.latest.lock() {
+            latest.insert(key.clone(), bytes.clone());
         }
         let publisher = match self.publishers.get(&key) {
             Some(p) => p,

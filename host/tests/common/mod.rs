@@ -1,6 +1,7 @@
 //! Shared by the CLI tests.
 #![allow(dead_code)]
 
+pub mod browser;
 pub mod fleet;
 
 use std::collections::BTreeMap;

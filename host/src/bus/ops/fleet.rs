@@ -173,6 +173,7 @@ fn view_json(f: &Formation, v: &View, alerts: Vec<String>, now: Instant) -> Valu
     let (station, lost_for_s) = match v.presence {
         Presence::Unknown => ("unknown", None),
         Presence::Live => ("live", None),
+        Presence::Lost { .. } if !v.formation["finished"].is_null() => ("finished", None),
         Presence::Lost { since } => ("lost", Some(now.duration_since(since).as_secs_f64())),
     };
     let robots: Vec<Value> = v
@@ -199,10 +200,11 @@ fn view_json(f: &Formation, v: &View, alerts: Vec<String>, now: Instant) -> Valu
 /// stopped formation, a robot whose link is lost, a station gone quiet.
 fn alerts(v: &View, now: Instant) -> Vec<String> {
     let mut alerts = Vec::new();
-    if let Presence::Lost { .. } = v.presence {
+    let f = &v.formation;
+    // A station that said its run finished leaves the bus as it should.
+    if matches!(v.presence, Presence::Lost { .. }) && f["finished"].is_null() {
         alerts.push("station lost".to_string());
     }
-    let f = &v.formation;
     if f["finished"].is_null() {
         match f["gate"].as_str() {
             Some("halted") => alerts.push("formation halted".into()),

@@ -99,21 +99,41 @@ impl Ops {
     }
 }
 
-/// The last sample of every key, from whoever keeps them (each station's cache, a router's
-/// storage): what a late `ops` shows before the next samples come.
+/// The last sample of every key of every live formation, from whoever keeps them (each
+/// station's cache): what a late `ops` shows before the next samples come. Asked formation
+/// by formation: access control lets a reader ask a station for its own keys, and no more.
 fn remember(session: &zenoh::Session, fleet: &Arc<Mutex<Fleet>>) {
-    let replies = match session
-        .get(keys::ALL)
+    let stations = match session
+        .liveliness()
+        .get(keys::ALL_STATIONS)
         .timeout(Duration::from_secs(1))
         .wait()
     {
         Ok(r) => r,
-        Err(e) => return tracing::warn!("ops: the bus's memory cannot be asked: {e}"),
+        Err(e) => return tracing::warn!("ops: the stations cannot be asked: {e}"),
     };
-    while let Ok(reply) = replies.recv() {
-        if let (Ok(sample), Ok(mut fleet)) = (reply.result(), fleet.lock()) {
-            let bytes = sample.payload().to_bytes();
-            fleet.sample(sample.key_expr().as_str(), &bytes, Instant::now(), false);
+    let formations: Vec<Formation> = std::iter::from_fn(|| stations.recv().ok())
+        .filter_map(|r| r.result().ok().map(|s| s.key_expr().as_str().to_string()))
+        .filter_map(|k| keys::parse(&k).map(|(f, _)| f))
+        .collect();
+    let asked: Vec<_> = formations
+        .iter()
+        .filter_map(|f| {
+            let asked = session
+                .get(f.key("**"))
+                .timeout(Duration::from_secs(1))
+                .wait();
+            asked
+                .map_err(|e| tracing::warn!("ops: cannot ask {}: {e}", f.label()))
+                .ok()
+        })
+        .collect();
+    for replies in asked {
+        while let Ok(reply) = replies.recv() {
+            if let (Ok(sample), Ok(mut fleet)) = (reply.result(), fleet.lock()) {
+                let bytes = sample.payload().to_bytes();
+                fleet.sample(sample.key_expr().as_str(), &bytes, Instant::now(), false);
+            }
         }
     }
 }

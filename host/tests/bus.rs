@@ -1,0 +1,385 @@
+//! A city's fleet on Zenoh, for real: the shipped sample configuration (router with access
+//! control, stations, `ops`) in a scratch directory, `basestation router`, three
+//! `sim --realtime --zenoh` formations and `basestation ops` as processes. All three appear;
+//! an emergency stop from `ops` stops exactly one; a killed station is shown lost within 2 s;
+//! a restarted router loses nothing; a station with another's credentials cannot publish as
+//! it; a client nobody here wrote (the `eclipse-zenoh` Python package) reads the key space
+//! and may not command; the page is driven in headless Chromium.
+//!
+//! The Python client and the browser are skipped (saying so) when missing, unless
+//! `BUS_CLIENTS_REQUIRED` is set (CI sets it).
+
+mod common;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+
+use common::browser::open_browser;
+use common::Killed;
+
+/// The formations of the sample configuration, with their station's user.
+const FORMATIONS: [(&str, &str, &str); 3] = [
+    ("north", "a", "station-north-a"),
+    ("north", "b", "station-north-b"),
+    ("south", "c", "station-south-c"),
+];
+
+fn free_tcp_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    l.local_addr().unwrap().port()
+}
+
+/// The shipped configuration in `dir`, on `port`; a station file per formation.
+fn configure(dir: &Path, port: u16) {
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("zenoh");
+    for name in ["router.json5", "station.json5", "ops.json5", "users.txt"] {
+        let text = std::fs::read_to_string(shipped.join(name)).unwrap();
+        let text = text
+            .replace("tcp/0.0.0.0:7447", &format!("tcp/127.0.0.1:{port}"))
+            .replace("tcp/127.0.0.1:7447", &format!("tcp/127.0.0.1:{port}"));
+        std::fs::write(dir.join(name), text).unwrap();
+    }
+    let station = std::fs::read_to_string(dir.join("station.json5")).unwrap();
+    for (site, name, _) in FORMATIONS {
+        let own = station.replace("north-a", &format!("{site}-{name}"));
+        std::fs::write(dir.join(format!("station-{site}-{name}.json5")), own).unwrap();
+    }
+}
+
+fn router(dir: &Path) -> Killed {
+    let child = common::basestation()
+        .current_dir(dir)
+        .args(["router", "--zenoh", "router.json5"])
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    Killed(child)
+}
+
+/// A formation's station: `sim --realtime` of the paper's obstacles for 90 s, on the bus
+/// with `config`, as `site/name`.
+fn station(dir: &Path, config: &str, site: &str, name: &str) -> Killed {
+    let out = dir.join(format!("{site}-{name}"));
+    std::fs::create_dir_all(&out).unwrap();
+    let scenario = out.join("scenario.toml");
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/paper-obstacles.toml");
+    let text = std::fs::read_to_string(shipped).unwrap() + "\n[sim]\nduration_s = 90.0\n";
+    std::fs::write(&scenario, text).unwrap();
+    let child = common::basestation()
+        .current_dir(dir)
+        .arg("sim")
+        .arg(&scenario)
+        .args([
+            "--realtime",
+            "--zenoh",
+            config,
+            "--site",
+            site,
+            "--formation",
+            name,
+        ])
+        .arg("--report")
+        .arg(out.join("report.json"))
+        .arg("--plot")
+        .arg(out.join("figure.svg"))
+        .arg("--mcap")
+        .arg(out.join("run.mcap"))
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    Killed(child)
+}
+
+/// `ops` on the bus, and its page's URL with the pairing code.
+fn ops(dir: &Path) -> (Killed, String) {
+    let mut child = common::basestation()
+        .current_dir(dir)
+        .args(["ops", "--zenoh", "ops.json5", "--page", "127.0.0.1:0"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.starts_with("ops: http") {
+        line.clear();
+        assert!(
+            stderr.read_line(&mut line).unwrap() > 0,
+            "ops printed no URL"
+        );
+    }
+    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
+    let url = line.trim().strip_prefix("ops: ").unwrap().to_string();
+    (Killed(child), url)
+}
+
+/// `ops`'s page API, as a script uses it (the pairing code in a header).
+struct Api {
+    port: u16,
+    code: String,
+}
+
+impl Api {
+    fn of(url: &str) -> Self {
+        let port = url.split(':').nth(2).unwrap().split('/').next().unwrap();
+        let code = url.split("#pair=").nth(1).unwrap();
+        Self {
+            port: port.parse().unwrap(),
+            code: code.into(),
+        }
+    }
+
+    fn request(&self, method: &str, path: &str, body: &str) -> (u16, Value) {
+        let mut s = TcpStream::connect(("127.0.0.1", self.port)).unwrap();
+        let host = format!("127.0.0.1:{}", self.port);
+        write!(
+            s,
+            "{method} {path} HTTP/1.1\r\nHost: {host}\r\nOrigin: http://{host}\r\n\
+             X-Console-Token: {}\r\nContent-Type: application/json\r\n\
+             Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+            self.code,
+            body.len()
+        )
+        .unwrap();
+        let mut text = String::new();
+        s.read_to_string(&mut text).unwrap();
+        let status = text[9..12].parse().unwrap();
+        let body = text.split_once("\r\n\r\n").map_or("", |x| x.1);
+        (status, serde_json::from_str(body).unwrap_or(Value::Null))
+    }
+
+    fn state(&self) -> Value {
+        self.request("GET", "/api/state", "").1
+    }
+
+    fn command(&self, formation: &str, command: &str) -> (u16, Value) {
+        let body = json!({ "formation": formation, "command": command }).to_string();
+        self.request("POST", "/api/command", &body)
+    }
+
+    /// The formation `label` as `ops` shows it now.
+    fn formation(&self, label: &str) -> Value {
+        let state = self.state();
+        let all = state["formations"].as_array().cloned().unwrap_or_default();
+        all.into_iter()
+            .find(|f| f["label"] == label)
+            .unwrap_or(Value::Null)
+    }
+
+    /// Waits up to `limit` for `ok` to hold of the state; how long it took.
+    fn until(&self, limit: Duration, what: &str, ok: impl Fn(&Value) -> bool) -> Duration {
+        let start = Instant::now();
+        loop {
+            let state = self.state();
+            if ok(&state) {
+                return start.elapsed();
+            }
+            assert!(
+                start.elapsed() < limit,
+                "{what} not within {limit:?}: {state}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+fn live_with_robots(state: &Value, label: &str) -> bool {
+    state["formations"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .any(|f| {
+            f["label"] == label
+                && f["station"] == "live"
+                && f["robots"].as_array().map_or(0, Vec::len) == 3
+        })
+}
+
+/// Every robot of `f` stands (its last speed under 2 cm/s).
+fn standing(f: &Value) -> bool {
+    f["robots"].as_array().is_some_and(|r| {
+        r.iter()
+            .all(|r| r["state"]["v"].as_f64().is_some_and(|v| v.abs() < 0.02))
+    })
+}
+
+fn required() -> bool {
+    std::env::var_os("BUS_CLIENTS_REQUIRED").is_some()
+}
+
+#[test]
+fn three_formations_one_router_one_ops_page() {
+    let dir = common::scratch("bus-test");
+    let port = free_tcp_port();
+    configure(&dir, port);
+    let mut router_process = router(&dir);
+    std::thread::sleep(Duration::from_millis(500));
+    let mut stations: Vec<Killed> = FORMATIONS
+        .iter()
+        .map(|(site, name, _)| station(&dir, &format!("station-{site}-{name}.json5"), site, name))
+        .collect();
+    // North/b's credentials claiming south/x: access control keeps it off the bus.
+    let _impostor = station(&dir, "station-north-b.json5", "south", "x");
+    let (_ops, url) = ops(&dir);
+    let api = Api::of(&url);
+
+    // All three appear, with their robots.
+    api.until(Duration::from_secs(20), "three live formations", |s| {
+        ["north/a", "north/b", "south/c"]
+            .iter()
+            .all(|l| live_with_robots(s, l))
+    });
+    assert!(api.formation("south/x").is_null(), "the impostor was shown");
+    // Under way: every formation's robots move.
+    api.until(Duration::from_secs(20), "three formations under way", |_| {
+        ["north/a", "north/b", "south/c"].iter().all(|l| {
+            let f = api.formation(l);
+            let moving = f["robots"].as_array().is_some_and(|r| {
+                r.iter()
+                    .all(|r| r["state"]["v"].as_f64().is_some_and(|v| v.abs() > 0.05))
+            });
+            moving && f["formation"]["gate"] == "running"
+        })
+    });
+
+    // An emergency stop from ops stops exactly north/b.
+    let (status, answer) = api.command("north/b", "emergency_stop");
+    assert_eq!(status, 200, "{answer}");
+    assert_eq!(answer["answer"]["done"], "emergency_stop", "{answer}");
+    api.until(Duration::from_secs(5), "north/b standing", |_| {
+        standing(&api.formation("north/b"))
+    });
+    for label in ["north/a", "south/c"] {
+        let f = api.formation(label);
+        assert!(f["formation"]["hold"].is_null(), "{label} held: {f}");
+        assert!(!standing(&f), "{label} stopped too: {f}");
+    }
+    assert_eq!(
+        api.formation("north/b")["formation"]["hold"],
+        "emergency_stop"
+    );
+
+    // A killed station is shown lost within 2 s.
+    stations[2].0.kill().unwrap();
+    let shown = api.until(Duration::from_secs(2), "south/c lost", |_| {
+        api.formation("south/c")["station"] == "lost"
+    });
+    println!("a killed station was shown lost after {shown:?}");
+    // A command to it is reported undelivered within the bound.
+    let asked = Instant::now();
+    let (status, answer) = api.command("south/c", "stop");
+    assert_eq!(
+        (status, &answer["delivered"]),
+        (504, &json!(false)),
+        "{answer}"
+    );
+    assert!(
+        asked.elapsed() < Duration::from_millis(1500),
+        "{:?}",
+        asked.elapsed()
+    );
+
+    // The router restarts: the live formations come back, fresh, and nothing is lost.
+    let before = api.formation("north/a")["formation"]["t_s"]
+        .as_f64()
+        .unwrap();
+    router_process.0.kill().unwrap();
+    let _ = router_process.0.wait();
+    std::thread::sleep(Duration::from_secs(1));
+    let _router_again = router(&dir);
+    api.until(
+        Duration::from_secs(20),
+        "the formations back after the router",
+        |s| live_with_robots(s, "north/a") && live_with_robots(s, "north/b"),
+    );
+    api.until(Duration::from_secs(5), "fresh samples", |_| {
+        api.formation("north/a")["formation"]["t_s"]
+            .as_f64()
+            .unwrap()
+            > before + 1.0
+    });
+    let c = api.formation("south/c");
+    assert_eq!(c["station"], "lost", "{c}");
+    assert_eq!(
+        c["robots"].as_array().unwrap().len(),
+        3,
+        "south/c forgotten: {c}"
+    );
+    let (status, answer) = api.command("north/a", "stop");
+    assert_eq!(
+        status, 200,
+        "a command after the router's restart: {answer}"
+    );
+
+    python_client(&dir, port);
+    browser(&dir, &url);
+    drop(stations);
+}
+
+/// The `eclipse-zenoh` Python package, as the sample's viewer: decodes the samples of every
+/// formation, and may not command one; a client without credentials may not connect.
+fn python_client(dir: &Path, port: u16) {
+    let probe = Command::new("python3")
+        .args(["-c", "import zenoh"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        assert!(
+            !required(),
+            "BUS_CLIENTS_REQUIRED is set but python3 has no zenoh"
+        );
+        eprintln!("SKIPPED: no eclipse-zenoh for python3 (pip install eclipse-zenoh)");
+        return;
+    }
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/bus_client.py");
+    let out = Command::new("python3")
+        .arg(script)
+        .arg(format!("tcp/127.0.0.1:{port}"))
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: Value = serde_json::from_str(text.trim()).unwrap();
+    // Live formations' robots' poses decoded as JSON with numbers.
+    assert!(r["poses"].as_u64().unwrap() >= 6, "{r}");
+    assert_eq!(r["formations"], json!(["north/a", "north/b"]), "{r}");
+    assert_eq!(r["command_replies"], 0, "the viewer commanded: {r}");
+    assert_eq!(r["anonymous"], "refused", "{r}");
+}
+
+/// The page in headless Chromium: a card per formation, updated at 5 Hz or more, the lost
+/// station marked.
+fn browser(dir: &Path, url: &str) {
+    let Some((_browser, mut page)) = open_browser(dir) else {
+        assert!(
+            !required(),
+            "BUS_CLIENTS_REQUIRED is set but no chromium was found"
+        );
+        return;
+    };
+    page.call("Page.navigate", json!({ "url": url }));
+    std::thread::sleep(Duration::from_secs(3));
+    let cards = page.eval("document.querySelectorAll('.card').length");
+    assert_eq!(cards, 3, "cards");
+    let lost = page.eval("document.querySelectorAll('.card.lost').length");
+    assert_eq!(lost, 1, "lost cards");
+    let updates = |page: &mut common::browser::Page| {
+        page.eval("Number(document.body.dataset.updates || 0)")
+            .as_f64()
+            .unwrap()
+    };
+    let (u0, t0) = (updates(&mut page), Instant::now());
+    std::thread::sleep(Duration::from_secs(2));
+    let rate = (updates(&mut page) - u0) / t0.elapsed().as_secs_f64();
+    println!("the ops page updated at {rate:.1} Hz");
+    assert!(rate >= 5.0, "the page updated at {rate:.1} Hz");
+    page.screenshot(&dir.join("ops.png"));
+}
