@@ -11,201 +11,17 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
 
 use common::browser::open_browser;
+use common::bus::{
+    configure, free_tcp_port, live_with_robots, ops, router, standing, station, Api, FORMATIONS,
+};
 use common::Killed;
-
-/// The formations of the sample configuration, with their station's user.
-const FORMATIONS: [(&str, &str, &str); 3] = [
-    ("north", "a", "station-north-a"),
-    ("north", "b", "station-north-b"),
-    ("south", "c", "station-south-c"),
-];
-
-fn free_tcp_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    l.local_addr().unwrap().port()
-}
-
-/// The shipped configuration in `dir`, on `port`; a station file per formation.
-fn configure(dir: &Path, port: u16) {
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("zenoh");
-    for name in ["router.json5", "station.json5", "ops.json5", "users.txt"] {
-        let text = std::fs::read_to_string(shipped.join(name)).unwrap();
-        let text = text
-            .replace("tcp/0.0.0.0:7447", &format!("tcp/127.0.0.1:{port}"))
-            .replace("tcp/127.0.0.1:7447", &format!("tcp/127.0.0.1:{port}"));
-        std::fs::write(dir.join(name), text).unwrap();
-    }
-    let station = std::fs::read_to_string(dir.join("station.json5")).unwrap();
-    for (site, name, _) in FORMATIONS {
-        let own = station.replace("north-a", &format!("{site}-{name}"));
-        std::fs::write(dir.join(format!("station-{site}-{name}.json5")), own).unwrap();
-    }
-}
-
-fn router(dir: &Path) -> Killed {
-    let child = common::basestation()
-        .current_dir(dir)
-        .args(["router", "--zenoh", "router.json5"])
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    Killed(child)
-}
-
-/// A formation's station: `sim --realtime` of the paper's obstacles for 90 s, on the bus
-/// with `config`, as `site/name`.
-fn station(dir: &Path, config: &str, site: &str, name: &str) -> Killed {
-    let out = dir.join(format!("{site}-{name}"));
-    std::fs::create_dir_all(&out).unwrap();
-    let scenario = out.join("scenario.toml");
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/paper-obstacles.toml");
-    let text = std::fs::read_to_string(shipped).unwrap() + "\n[sim]\nduration_s = 90.0\n";
-    std::fs::write(&scenario, text).unwrap();
-    let child = common::basestation()
-        .current_dir(dir)
-        .arg("sim")
-        .arg(&scenario)
-        .args([
-            "--realtime",
-            "--zenoh",
-            config,
-            "--site",
-            site,
-            "--formation",
-            name,
-        ])
-        .arg("--report")
-        .arg(out.join("report.json"))
-        .arg("--plot")
-        .arg(out.join("figure.svg"))
-        .arg("--mcap")
-        .arg(out.join("run.mcap"))
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    Killed(child)
-}
-
-/// `ops` on the bus, and its page's URL with the pairing code.
-fn ops(dir: &Path) -> (Killed, String) {
-    let mut child = common::basestation()
-        .current_dir(dir)
-        .args(["ops", "--zenoh", "ops.json5", "--page", "127.0.0.1:0"])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.starts_with("ops: http") {
-        line.clear();
-        assert!(
-            stderr.read_line(&mut line).unwrap() > 0,
-            "ops printed no URL"
-        );
-    }
-    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
-    let url = line.trim().strip_prefix("ops: ").unwrap().to_string();
-    (Killed(child), url)
-}
-
-/// `ops`'s page API, as a script uses it (the pairing code in a header).
-struct Api {
-    port: u16,
-    code: String,
-}
-
-impl Api {
-    fn of(url: &str) -> Self {
-        let port = url.split(':').nth(2).unwrap().split('/').next().unwrap();
-        let code = url.split("#pair=").nth(1).unwrap();
-        Self {
-            port: port.parse().unwrap(),
-            code: code.into(),
-        }
-    }
-
-    fn request(&self, method: &str, path: &str, body: &str) -> (u16, Value) {
-        let mut s = TcpStream::connect(("127.0.0.1", self.port)).unwrap();
-        let host = format!("127.0.0.1:{}", self.port);
-        write!(
-            s,
-            "{method} {path} HTTP/1.1\r\nHost: {host}\r\nOrigin: http://{host}\r\n\
-             X-Console-Token: {}\r\nContent-Type: application/json\r\n\
-             Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
-            self.code,
-            body.len()
-        )
-        .unwrap();
-        let mut text = String::new();
-        s.read_to_string(&mut text).unwrap();
-        let status = text[9..12].parse().unwrap();
-        let body = text.split_once("\r\n\r\n").map_or("", |x| x.1);
-        (status, serde_json::from_str(body).unwrap_or(Value::Null))
-    }
-
-    fn state(&self) -> Value {
-        self.request("GET", "/api/state", "").1
-    }
-
-    fn command(&self, formation: &str, command: &str) -> (u16, Value) {
-        let body = json!({ "formation": formation, "command": command }).to_string();
-        self.request("POST", "/api/command", &body)
-    }
-
-    /// The formation `label` as `ops` shows it now.
-    fn formation(&self, label: &str) -> Value {
-        let state = self.state();
-        let all = state["formations"].as_array().cloned().unwrap_or_default();
-        all.into_iter()
-            .find(|f| f["label"] == label)
-            .unwrap_or(Value::Null)
-    }
-
-    /// Waits up to `limit` for `ok` to hold of the state; how long it took.
-    fn until(&self, limit: Duration, what: &str, ok: impl Fn(&Value) -> bool) -> Duration {
-        let start = Instant::now();
-        loop {
-            let state = self.state();
-            if ok(&state) {
-                return start.elapsed();
-            }
-            assert!(
-                start.elapsed() < limit,
-                "{what} not within {limit:?}: {state}"
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-}
-
-fn live_with_robots(state: &Value, label: &str) -> bool {
-    state["formations"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .any(|f| {
-            f["label"] == label
-                && f["station"] == "live"
-                && f["robots"].as_array().map_or(0, Vec::len) == 3
-        })
-}
-
-/// Every robot of `f` stands (its last speed under 2 cm/s).
-fn standing(f: &Value) -> bool {
-    f["robots"].as_array().is_some_and(|r| {
-        r.iter()
-            .all(|r| r["state"]["v"].as_f64().is_some_and(|v| v.abs() < 0.02))
-    })
-}
 
 fn required() -> bool {
     std::env::var_os("BUS_CLIENTS_REQUIRED").is_some()
@@ -235,16 +51,20 @@ fn three_formations_one_router_one_ops_page() {
     });
     assert!(api.formation("south/x").is_null(), "the impostor was shown");
     // Under way: every formation's robots move.
-    api.until(Duration::from_secs(20), "three formations under way", |_| {
-        ["north/a", "north/b", "south/c"].iter().all(|l| {
-            let f = api.formation(l);
-            let moving = f["robots"].as_array().is_some_and(|r| {
-                r.iter()
-                    .all(|r| r["state"]["v"].as_f64().is_some_and(|v| v.abs() > 0.05))
-            });
-            moving && f["formation"]["gate"] == "running"
-        })
-    });
+    api.until(
+        Duration::from_secs(20),
+        "three formations under way",
+        |_| {
+            ["north/a", "north/b", "south/c"].iter().all(|l| {
+                let f = api.formation(l);
+                let moving = f["robots"].as_array().is_some_and(|r| {
+                    r.iter()
+                        .all(|r| r["state"]["v"].as_f64().is_some_and(|v| v.abs() > 0.05))
+                });
+                moving && f["formation"]["gate"] == "running"
+            })
+        },
+    );
 
     // An emergency stop from ops stops exactly north/b.
     let (status, answer) = api.command("north/b", "emergency_stop");
@@ -314,6 +134,19 @@ fn three_formations_one_router_one_ops_page() {
         status, 200,
         "a command after the router's restart: {answer}"
     );
+
+    // An ops started late shows every live formation at once, from the stations' caches.
+    let (_late, late_url) = ops(&dir);
+    let late = Api::of(&late_url);
+    for label in ["north/a", "north/b"] {
+        let f = late.formation(label);
+        assert_eq!(
+            f["robots"].as_array().map_or(0, Vec::len),
+            3,
+            "{label}: {f}"
+        );
+        assert!(!f["formation"]["gate"].is_null(), "{label}: {f}");
+    }
 
     python_client(&dir, port);
     browser(&dir, &url);

@@ -50,7 +50,16 @@ pub struct StationBus {
 impl StationBus {
     /// Joins the bus with Zenoh's own configuration file, as `formation`; the session opens
     /// on the bus thread (and is tried again until the router answers).
-    pub fn open(config: zenoh::Config, formation: Formation, map: Value) -> anyhow::Result<Self> {
+    pub fn open(
+        mut config: zenoh::Config,
+        formation: Formation,
+        map: Value,
+    ) -> anyhow::Result<Self> {
+        // Every sample carries its publish time (the session's HLC): readers measure the
+        // bus's latency, storages order samples.
+        config
+            .insert_json5("timestamping/enabled", "true")
+            .map_err(|e| anyhow::anyhow!("timestamping: {e}"))?;
         let (tx, rx) = mpsc::sync_channel(QUEUE);
         let (command_tx, commands) = mpsc::sync_channel(16);
         let thread = std::thread::Builder::new()

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod browser;
+pub mod bus;
 pub mod fleet;
 
 use std::collections::BTreeMap;

@@ -3,8 +3,8 @@
 //! liveliness changes; read as the page's JSON. Time here is the wall clock's (`Instant`):
 //! `ops` watches live fleets, it simulates nothing.
 
-use std::collections::{BTreeMap, VecDeque};
-use std::time::{Duration, Instant};
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::time::{Duration, Instant, SystemTime};
 
 use serde_json::{json, Value};
 
@@ -60,6 +60,12 @@ impl View {
     }
 }
 
+/// Latencies kept for the percentiles: the last minute of a 50-formation city.
+const LATENCIES_KEPT: usize = 20_000;
+/// A station publishes each key every period (0.1 s of its clock); a gap longer than
+/// this between two samples of one key lost samples in between.
+const PERIOD_S: f64 = 0.1;
+
 /// Every formation `ops` has seen since it started (or learnt of from the bus's memory).
 #[derive(Default)]
 pub struct Fleet {
@@ -67,6 +73,12 @@ pub struct Fleet {
     /// Samples taken, and those whose payload was not what the key space says.
     pub samples: u64,
     pub malformed: u64,
+    /// Samples a station published every period that never came (from gaps in `t_s`).
+    pub lost: u64,
+    /// Publish-to-`ops` latencies (ms) of the last samples, from their timestamps.
+    latencies: VecDeque<f64>,
+    /// Each per-period key's last `t_s`.
+    last_t: HashMap<String, f64>,
 }
 
 impl Fleet {
@@ -81,6 +93,9 @@ impl Fleet {
             return;
         };
         self.samples += 1;
+        if fresh && matches!(topic, Topic::Formation | Topic::Robot { .. }) {
+            self.count_gaps(key, &value);
+        }
         let view = self.views.entry(formation).or_insert_with(View::new);
         view.last_sample = Some(now);
         let slow = matches!(topic, Topic::Route | Topic::Map);
@@ -115,6 +130,43 @@ impl Fleet {
         *slot = value;
     }
 
+    /// A sample's publish time (its timestamp): its latency is kept.
+    pub fn sent_at(&mut self, sent: SystemTime) {
+        let ms = SystemTime::now()
+            .duration_since(sent)
+            .map_or(0.0, |d| d.as_secs_f64() * 1e3);
+        if self.latencies.len() == LATENCIES_KEPT {
+            self.latencies.pop_front();
+        }
+        self.latencies.push_back(ms);
+    }
+
+    fn count_gaps(&mut self, key: &str, value: &Value) {
+        let Some(t) = value["t_s"].as_f64() else {
+            return;
+        };
+        if let Some(last) = self.last_t.insert(key.to_string(), t) {
+            let missed = ((t - last) / PERIOD_S).round() as i64 - 1;
+            // A restarted station's clock starts again: no gap to count.
+            if missed > 0 && t > last {
+                self.lost += missed as u64;
+            }
+        }
+    }
+
+    /// The bus as `ops` sees it: samples, malformed, lost, and latency percentiles (ms).
+    pub fn bus(&self) -> Value {
+        let mut l: Vec<f64> = self.latencies.iter().copied().collect();
+        l.sort_by(f64::total_cmp);
+        let at = |q: f64| (!l.is_empty()).then(|| l[((l.len() - 1) as f64 * q) as usize]);
+        json!({
+            "samples": self.samples,
+            "malformed": self.malformed,
+            "lost": self.lost,
+            "latency_ms": { "p50": at(0.5), "p99": at(0.99), "max": l.last(), "of": l.len() },
+        })
+    }
+
     /// A station's liveliness token came (`live`) or went.
     pub fn presence(&mut self, key: &str, live: bool, now: Instant) {
         let Some((formation, Topic::Station)) = keys::parse(key) else {
@@ -145,8 +197,7 @@ impl Fleet {
         json!({
             "formations": formations,
             "alerts": all_alerts,
-            "samples": self.samples,
-            "malformed": self.malformed,
+            "bus": self.bus(),
         })
     }
 
@@ -262,6 +313,12 @@ mod tests {
         assert_eq!(s["formations"][0]["station"], "live");
         assert_eq!(s["alerts"][0]["alert"], "robot 2 lost");
         assert_eq!((fleet.samples, fleet.malformed), (2, 1));
+        // One period skipped on a key: one sample lost.
+        let pose = |t: f64| format!(r#"{{"t_s":{t},"x":0,"y":0,"heading":0}}"#);
+        for t in [1.0, 1.1, 1.3, 1.4] {
+            fleet.sample("sweeper/north/a/robot/2/pose", pose(t).as_bytes(), t0, true);
+        }
+        assert_eq!(fleet.lost, 1);
         // The station goes: lost, and its robots' links are no longer judged.
         fleet.presence("sweeper/north/a/station", false, t0);
         let s = fleet.state(t0 + SILENT_AFTER * 2);

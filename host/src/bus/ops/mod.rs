@@ -53,6 +53,8 @@ impl Ops {
             .wait()
             .map_err(|e| anyhow::anyhow!("cannot join the bus: {e}"))?;
         let fleet = Arc::new(Mutex::new(Fleet::default()));
+        // What the bus remembers first: every sample after it is newer.
+        remember(&session, &fleet);
         let f = fleet.clone();
         let samples = session
             .declare_subscriber(keys::ALL)
@@ -61,6 +63,9 @@ impl Ops {
                     if let Ok(mut fleet) = f.lock() {
                         let bytes = s.payload().to_bytes();
                         fleet.sample(s.key_expr().as_str(), &bytes, Instant::now(), true);
+                        if let Some(t) = s.timestamp() {
+                            fleet.sent_at(t.get_time().to_system_time());
+                        }
                     }
                 }
             })
@@ -79,7 +84,6 @@ impl Ops {
             })
             .wait()
             .map_err(|e| anyhow::anyhow!("cannot watch the stations: {e}"))?;
-        remember(&session, &fleet);
         let asks = commander(session.clone())?;
         Ok(Self {
             fleet,
@@ -128,14 +132,20 @@ fn remember(session: &zenoh::Session, fleet: &Arc<Mutex<Fleet>>) {
                 .ok()
         })
         .collect();
+    let mut remembered = 0;
     for replies in asked {
         while let Ok(reply) = replies.recv() {
             if let (Ok(sample), Ok(mut fleet)) = (reply.result(), fleet.lock()) {
                 let bytes = sample.payload().to_bytes();
                 fleet.sample(sample.key_expr().as_str(), &bytes, Instant::now(), false);
+                remembered += 1;
             }
         }
     }
+    tracing::info!(
+        "ops: {} live formation(s), {remembered} remembered sample(s)",
+        formations.len()
+    );
 }
 
 /// The thread that sends commands and waits for their answers.
