@@ -284,8 +284,39 @@ fn a_bad_command_line_exits_2() {
         err.contains("--console and --live need --realtime"),
         "{err}"
     );
+    let (code, _, err) = basestation(&["sim", "--zenoh", "station.json5"], None);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--zenoh needs --realtime"), "{err}");
     let (code, _, _) = basestation(&["sim", "--no-such-flag"], None);
     assert_eq!(code, 2);
+}
+
+/// A bad bus configuration or name is refused before anything runs, the file named.
+#[test]
+fn a_bad_bus_configuration_is_refused_with_its_file() {
+    let dir = common::scratch("cli-bus");
+    let bad = dir.join("bad.json5");
+    std::fs::write(&bad, "{ mode: \"client\", connect: { endpoints: [ }").unwrap();
+    let path = bad.to_str().unwrap();
+    let (code, _, err) = basestation(&["sim", "--realtime", "--zenoh", path], None);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("--zenoh") && err.contains("bad.json5"),
+        "{err}"
+    );
+    let (code, _, err) = basestation(&["sim", "--realtime", "--zenoh", "nowhere.json5"], None);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("nowhere.json5: no such file"), "{err}");
+    let good = dir.join("good.json5");
+    std::fs::write(&good, "{ mode: \"client\" }").unwrap();
+    let good = good.to_str().unwrap();
+    let args = ["sim", "--realtime", "--zenoh", good, "--formation", "a/b"];
+    let (code, _, err) = basestation(&args, None);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("formation name \"a/b\""), "{err}");
+    let (code, _, err) = basestation(&["ops", "--zenoh", path], None);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("bad.json5"), "{err}");
 }
 
 #[test]

@@ -84,11 +84,16 @@ fn parse_fault(text: &str) -> anyhow::Result<base_station::scenario::FaultSpec> 
 
 pub fn run(args: SimArgs) -> anyhow::Result<super::outcome::Outcome> {
     let serves = args.serve.console.is_some() || args.serve.live.is_some();
-    if !args.realtime && (serves || args.serve.zenoh.is_some()) {
+    let needs_realtime = match (serves, args.serve.zenoh.is_some()) {
+        (true, _) => Some("--console and --live need --realtime"),
+        (false, true) => Some("--zenoh needs --realtime"),
+        (false, false) => None,
+    };
+    if let Some(what) = needs_realtime.filter(|_| !args.realtime) {
         // A bad command line, as clap's own: exit code 2 (README.md#exit-codes).
         clap::Error::raw(
             clap::error::ErrorKind::MissingRequiredArgument,
-            "--console, --live and --zenoh need --realtime (a run no faster than the wall clock)\n",
+            format!("{what} (a run no faster than the wall clock)\n"),
         )
         .exit();
     }
