@@ -103,6 +103,19 @@ fn three_formations_one_router_one_ops_page() {
         asked.elapsed()
     );
 
+    // An ops started late shows every formation at once: the live ones from their caches
+    // and the router's storage, the lost one, with its last state, from the storage.
+    let (_first_late, first_late_url) = ops(&dir);
+    let late = Api::of(&first_late_url);
+    for label in ["north/a", "north/b", "south/c"] {
+        let f = late.formation(label);
+        let robots = f["robots"].as_array().map_or(0, Vec::len);
+        assert_eq!(robots, 3, "{label}: {f}");
+    }
+    assert_eq!(late.formation("south/c")["station"], "lost");
+    let b = late.formation("north/b");
+    assert_eq!(b["formation"]["hold"], "emergency_stop", "{b}");
+
     // The router restarts: the live formations come back, fresh, and nothing is lost.
     let before = api.formation("north/a")["formation"]["t_s"]
         .as_f64()
@@ -135,7 +148,7 @@ fn three_formations_one_router_one_ops_page() {
         "a command after the router's restart: {answer}"
     );
 
-    // An ops started late shows every live formation at once, from the stations' caches.
+    // After the router's restart too: the live formations from the stations' caches.
     let (_late, late_url) = ops(&dir);
     let late = Api::of(&late_url);
     for label in ["north/a", "north/b"] {

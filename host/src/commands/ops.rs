@@ -8,7 +8,6 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use clap::Args;
-use zenoh::Wait;
 
 use crate::bus;
 use crate::live::console::{guard::Guard, reachable_at, server, url_of};
@@ -103,13 +102,49 @@ pub fn run(args: OpsArgs) -> anyhow::Result<()> {
     wait_for_interrupt()
 }
 
+/// The memory storage a router keeps of the fleet's keys when its file configures none:
+/// what a late `ops` reads of formations whose station has gone.
+const DEFAULT_STORAGE: &str =
+    r#"{ storages: { fleet: { key_expr: "sweeper/**", volume: "memory" } } }"#;
+
 pub fn router(args: RouterArgs) -> anyhow::Result<()> {
-    let config = config_or_router(args.zenoh.as_ref(), &args.bus)?;
-    let session = zenoh::open(config)
-        .wait()
-        .map_err(|e| anyhow::anyhow!("cannot start the router: {e}"))?;
-    eprintln!("router: up as {}", session.zid());
+    let mut config = config_or_router(args.zenoh.as_ref(), &args.bus)?;
+    if config.get_json("plugins/storage_manager").is_err() {
+        config
+            .insert_json5("plugins/storage_manager", DEFAULT_STORAGE)
+            .map_err(|e| anyhow::anyhow!("the default storage: {e}"))?;
+    }
+    // The router and its storages run on Zenoh's runtime, which needs Tokio's
+    // multi-threaded scheduler.
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the router's runtime")?;
+    let router = runtime.block_on(start_router(config))?;
+    eprintln!("router: up as {}", router.zid());
     wait_for_interrupt()?;
-    let _ = session.close().wait();
+    runtime.block_on(async { router.close().await.ok() });
     Ok(())
+}
+
+/// A router with the storage manager (Zenoh's own plugin, linked in as a static plugin the
+/// way `zenohd` declares its own) started from the configuration's
+/// `plugins/storage_manager`.
+async fn start_router(config: zenoh::Config) -> anyhow::Result<zenoh::internal::runtime::Runtime> {
+    let mut plugins = zenoh::internal::plugins::PluginsManager::static_plugins_only();
+    plugins.declare_static_plugin::<zenoh_plugin_storage_manager::StoragesPlugin, &str>(
+        "storage_manager",
+        true,
+    );
+    let mut runtime = zenoh::internal::runtime::RuntimeBuilder::new(config)
+        .plugins_manager(plugins)
+        .build()
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot start the router: {e}"))?;
+    runtime
+        .start()
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot start the router: {e}"))?;
+    Ok(runtime)
 }

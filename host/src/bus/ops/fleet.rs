@@ -180,6 +180,15 @@ impl Fleet {
         };
     }
 
+    /// Every formation known but not in `live` lost its station (before `ops` started).
+    pub fn mark_gone_except(&mut self, live: &[Formation], now: Instant) {
+        for (f, v) in self.views.iter_mut() {
+            if v.presence == Presence::Unknown && !live.contains(f) {
+                v.presence = Presence::Lost { since: now };
+            }
+        }
+    }
+
     /// The page's state: every formation, by site, with its alerts.
     pub fn state(&self, now: Instant) -> Value {
         let mut all_alerts = Vec::new();

@@ -103,32 +103,20 @@ impl Ops {
     }
 }
 
-/// The last sample of every key of every live formation, from whoever keeps them (each
-/// station's cache): what a late `ops` shows before the next samples come. Asked formation
-/// by formation: access control lets a reader ask a station for its own keys, and no more.
+/// What the bus remembers: the last sample of every key from the router's storage (every
+/// formation it has seen, gone ones too), and from each live station's cache. Asked
+/// formation by formation too: access control lets a reader ask a station for its own keys
+/// and no more. A formation remembered whose station is not live is shown lost.
 fn remember(session: &zenoh::Session, fleet: &Arc<Mutex<Fleet>>) {
-    let stations = match session
-        .liveliness()
-        .get(keys::ALL_STATIONS)
-        .timeout(Duration::from_secs(1))
-        .wait()
-    {
-        Ok(r) => r,
-        Err(e) => return tracing::warn!("ops: the stations cannot be asked: {e}"),
-    };
-    let formations: Vec<Formation> = std::iter::from_fn(|| stations.recv().ok())
-        .filter_map(|r| r.result().ok().map(|s| s.key_expr().as_str().to_string()))
-        .filter_map(|k| keys::parse(&k).map(|(f, _)| f))
-        .collect();
-    let asked: Vec<_> = formations
+    let live = live_formations(session);
+    let mut selectors = vec![keys::ALL.to_string()];
+    selectors.extend(live.iter().map(|f| f.key("**")));
+    let asked: Vec<_> = selectors
         .iter()
-        .filter_map(|f| {
-            let asked = session
-                .get(f.key("**"))
-                .timeout(Duration::from_secs(1))
-                .wait();
+        .filter_map(|k| {
+            let asked = session.get(k).timeout(Duration::from_secs(1)).wait();
             asked
-                .map_err(|e| tracing::warn!("ops: cannot ask {}: {e}", f.label()))
+                .map_err(|e| tracing::warn!("ops: cannot ask {k}: {e}"))
                 .ok()
         })
         .collect();
@@ -142,10 +130,33 @@ fn remember(session: &zenoh::Session, fleet: &Arc<Mutex<Fleet>>) {
             }
         }
     }
+    if let Ok(mut fleet) = fleet.lock() {
+        fleet.mark_gone_except(&live, Instant::now());
+    }
     tracing::info!(
         "ops: {} live formation(s), {remembered} remembered sample(s)",
-        formations.len()
+        live.len()
     );
+}
+
+/// The formations whose station holds its token now.
+fn live_formations(session: &zenoh::Session) -> Vec<Formation> {
+    let stations = match session
+        .liveliness()
+        .get(keys::ALL_STATIONS)
+        .timeout(Duration::from_secs(1))
+        .wait()
+    {
+        Ok(r) => r,
+        Err(e) => {
+            tracing::warn!("ops: the stations cannot be asked: {e}");
+            return Vec::new();
+        }
+    };
+    std::iter::from_fn(|| stations.recv().ok())
+        .filter_map(|r| r.result().ok().map(|s| s.key_expr().as_str().to_string()))
+        .filter_map(|k| keys::parse(&k).map(|(f, _)| f))
+        .collect()
 }
 
 /// The thread that sends commands and waits for their answers.
