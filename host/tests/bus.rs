@@ -122,7 +122,15 @@ fn three_formations_one_router_one_ops_page() {
         .unwrap();
     router_process.0.kill().unwrap();
     let _ = router_process.0.wait();
-    std::thread::sleep(Duration::from_secs(1));
+    api.until(
+        Duration::from_secs(2),
+        "ops saying the router is gone",
+        |s| {
+            s["alerts"][0]["alert"]
+                .as_str()
+                .is_some_and(|a| a.contains("router is out of reach"))
+        },
+    );
     let _router_again = router(&dir);
     api.until(
         Duration::from_secs(20),

@@ -79,6 +79,8 @@ pub struct Fleet {
     latencies: VecDeque<f64>,
     /// Each per-period key's last `t_s`.
     last_t: HashMap<String, f64>,
+    /// Whether a client `ops` reaches a router (`None`: `ops` is the router).
+    pub router_reached: Option<bool>,
 }
 
 impl Fleet {
@@ -192,6 +194,12 @@ impl Fleet {
     /// The page's state: every formation, by site, with its alerts.
     pub fn state(&self, now: Instant) -> Value {
         let mut all_alerts = Vec::new();
+        if self.router_reached == Some(false) {
+            all_alerts.push(json!({
+                "formation": "ops",
+                "alert": "the bus's router is out of reach: the page shows what it last heard",
+            }));
+        }
         let formations: Vec<Value> = self
             .views
             .iter()

@@ -49,6 +49,7 @@ pub struct Ops {
 impl Ops {
     /// Joins the bus with `config` and fills the fleet from what the bus remembers.
     pub fn join(config: zenoh::Config) -> anyhow::Result<Self> {
+        let client = config.get_json("mode").is_ok_and(|m| m.contains("client"));
         let session = zenoh::open(config)
             .wait()
             .map_err(|e| anyhow::anyhow!("cannot join the bus: {e}"))?;
@@ -85,6 +86,9 @@ impl Ops {
             .wait()
             .map_err(|e| anyhow::anyhow!("cannot watch the stations: {e}"))?;
         let asks = commander(session.clone())?;
+        if client {
+            watch_router(session.clone(), fleet.clone())?;
+        }
         Ok(Self {
             fleet,
             _session: session,
@@ -157,6 +161,24 @@ fn live_formations(session: &zenoh::Session) -> Vec<Formation> {
         .filter_map(|r| r.result().ok().map(|s| s.key_expr().as_str().to_string()))
         .filter_map(|k| keys::parse(&k).map(|(f, _)| f))
         .collect()
+}
+
+/// How often `ops` checks that it still reaches a router.
+const ROUTER_CHECK: Duration = Duration::from_millis(500);
+
+/// A client `ops` says when it has lost its router: what it shows is then the last it
+/// heard, and every station looks lost. (A router `ops` is the bus itself.)
+fn watch_router(session: zenoh::Session, fleet: Arc<Mutex<Fleet>>) -> anyhow::Result<()> {
+    std::thread::Builder::new()
+        .name("ops-router".into())
+        .spawn(move || loop {
+            let routers = session.info().routers_zid().wait().count();
+            if let Ok(mut fleet) = fleet.lock() {
+                fleet.router_reached = Some(routers > 0);
+            }
+            std::thread::sleep(ROUTER_CHECK);
+        })?;
+    Ok(())
 }
 
 /// The thread that sends commands and waits for their answers.
