@@ -79,12 +79,19 @@ fn main() -> ExitCode {
         cli.command,
         Command::Run(_) | Command::Robots(_) | Command::Ops(_) | Command::Router(_)
     );
+    // Zenoh's own retries and reconnections are the bus's business: the station says in its
+    // own words when the bus is away (`bus: …`), Zenoh's details from -vv on.
+    const QUIET_BUS: &str = "zenoh=error,zenoh_transport=error,zenoh_link_commons=error,\
+                             zenoh_link_tcp=error,zenoh_plugin_trait=error,zenoh_config=error";
     let default = match cli.verbose {
-        0 if live => "warn,base_station::station=info,basestation::commands::run=info",
-        0 => "warn",
-        1 => "info",
-        2 => "debug",
-        _ => "trace",
+        0 if live => format!(
+            "warn,base_station::station=info,basestation::commands::run=info,\
+             basestation::bus=info,{QUIET_BUS}"
+        ),
+        0 => format!("warn,{QUIET_BUS}"),
+        1 => format!("info,{QUIET_BUS}"),
+        2 => "debug".into(),
+        _ => "trace".into(),
     };
     let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
     tracing_subscriber::fmt()

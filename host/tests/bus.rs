@@ -237,3 +237,38 @@ fn browser(dir: &Path, url: &str) {
     assert!(rate >= 5.0, "the page updated at {rate:.1} Hz");
     page.screenshot(&dir.join("ops.png"));
 }
+
+/// With the bus out of reach from the start, a formation's run is the one it is without
+/// `--zenoh`: the report identical (a realtime run is lockstep, so it matches a plain one).
+#[test]
+fn a_bus_out_of_reach_changes_nothing_of_the_run() {
+    let dir = common::scratch("bus-gone");
+    let passage = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/paper-passage.toml");
+    let text = std::fs::read_to_string(passage).unwrap() + "\n[sim]\nduration_s = 12.0\n";
+    let scenario = dir.join("passage-12s.toml");
+    std::fs::write(&scenario, text).unwrap();
+    let closed = free_tcp_port();
+    let config = dir.join("nowhere.json5");
+    let client =
+        format!("{{ mode: \"client\", connect: {{ endpoints: [\"tcp/127.0.0.1:{closed}\"] }} }}");
+    std::fs::write(&config, client).unwrap();
+    let file = scenario.to_str().unwrap();
+    for sub in ["plain", "bus"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+    }
+    let (plain, plain_report) = common::sim_into(&dir.join("plain"), file, &[]);
+    let bus_dir = dir.join("bus");
+    let args = ["--realtime", "--zenoh", config.to_str().unwrap()];
+    let (on_bus, bus_report) = common::sim_into(&bus_dir, file, &args);
+    assert_eq!(plain.status.code(), on_bus.status.code());
+    let err = String::from_utf8_lossy(&on_bus.stderr);
+    assert!(err.contains("bus: cannot open a session yet"), "{err}");
+    let strip = |path: &Path| {
+        let mut v: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        v.as_object_mut()
+            .unwrap()
+            .retain(|k, _| !k.contains("wall"));
+        v
+    };
+    assert_eq!(strip(&plain_report), strip(&bus_report));
+}
