@@ -4,7 +4,9 @@
 //! lost, the CPU of the router and of `ops`, and how often the `ops` page updates in
 //! headless Chromium (skipped without a browser).
 //!
-//! `cargo bench -p host --bench bus_scale -- [--formations 50] [--seconds 30]`
+//! `cargo bench -p host --bench bus_scale -- [--formations 50] [--seconds 30] [--acl]`;
+//! with `--acl` the router checks every station's user and keys, as the sample
+//! configuration does (a rule per formation).
 //! (figures: docs/operating.md#a-citys-fleet-on-zenoh).
 
 #[path = "../tests/common/mod.rs"]
@@ -43,16 +45,82 @@ fn arg(name: &str, default: u64) -> u64 {
         .unwrap_or(default)
 }
 
-/// A router and client configurations without access control, on `port`.
-fn configure(dir: &Path, port: u16) -> Killed {
-    let client = format!(
+/// The site and name of formation `i`.
+fn formation(i: u64) -> (String, String) {
+    (format!("district-{}", i % 5), format!("f{i:02}"))
+}
+
+/// A client's configuration on `port`, as `user` when access control is on.
+fn client(port: u16, user: Option<&str>) -> String {
+    let auth = user.map_or(String::new(), |u| {
+        format!("transport: {{ auth: {{ usrpwd: {{ user: \"{u}\", password: \"pw-{u}\" }} }} }},")
+    });
+    format!(
         "{{ mode: \"client\", connect: {{ endpoints: [\"tcp/127.0.0.1:{port}\"] }}, \
-         scouting: {{ multicast: {{ enabled: false }} }} }}"
+         scouting: {{ multicast: {{ enabled: false }} }}, {auth} }}"
+    )
+}
+
+/// The router's access control for `n` stations and `ops`, as the sample's rules.
+fn access_control(n: u64) -> String {
+    let own = "[\"put\", \"delete\", \"declare_queryable\", \"query\", \"reply\", \
+               \"liveliness_token\", \"liveliness_query\"]";
+    let read = "[\"declare_subscriber\", \"put\", \"declare_liveliness_subscriber\", \
+                \"liveliness_token\", \"liveliness_query\", \"query\", \"reply\"]";
+    let (mut rules, mut subjects, mut policies) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..n {
+        let (site, name) = formation(i);
+        rules.push(format!(
+            "{{ id: \"r{i}\", permission: \"allow\", messages: {own}, key_exprs: [\"sweeper/{site}/{name}/**\"] }}"
+        ));
+        subjects.push(format!("{{ id: \"s{i}\", usernames: [\"station-{i}\"] }}"));
+        policies.push(format!(
+            "{{ rules: [\"r{i}\", \"listeners\"], subjects: [\"s{i}\"] }}"
+        ));
+    }
+    rules.push(format!(
+        "{{ id: \"listeners\", permission: \"allow\", flows: [\"egress\"], \
+         messages: [\"declare_subscriber\"], key_exprs: [\"sweeper/**\"] }}, \
+         {{ id: \"read-all\", permission: \"allow\", messages: {read}, key_exprs: [\"sweeper/**\"] }}"
+    ));
+    subjects.push("{ id: \"ops\", usernames: [\"ops\"] }".into());
+    policies.push("{ rules: [\"read-all\"], subjects: [\"ops\"] }".into());
+    format!(
+        "access_control: {{ enabled: true, default_permission: \"deny\", rules: [{}], \
+         subjects: [{}], policies: [{}] }}",
+        rules.join(", "),
+        subjects.join(", "),
+        policies.join(", ")
+    )
+}
+
+/// A router on `port` (with access control and the users' dictionary when `acl`), and
+/// the clients' files.
+fn configure(dir: &Path, port: u16, n: u64, acl: bool) -> Killed {
+    let mut router = format!(
+        "{{ mode: \"router\", listen: {{ endpoints: [\"tcp/127.0.0.1:{port}\"] }}, \
+         scouting: {{ multicast: {{ enabled: false }} }}"
     );
-    std::fs::write(dir.join("station.json5"), &client).unwrap();
-    std::fs::write(dir.join("ops.json5"), &client).unwrap();
+    if acl {
+        let users: Vec<String> = (0..n)
+            .map(|i| format!("station-{i}:pw-station-{i}"))
+            .chain(["ops:pw-ops".to_string()])
+            .collect();
+        std::fs::write(dir.join("users.txt"), users.join("\n") + "\n").unwrap();
+        router += ", transport: { auth: { usrpwd: { dictionary_file: \"users.txt\" } } }, ";
+        router += &access_control(n);
+    }
+    router += " }";
+    std::fs::write(dir.join("router.json5"), router).unwrap();
+    for i in 0..n {
+        let user = format!("station-{i}");
+        let text = client(port, acl.then_some(user.as_str()));
+        std::fs::write(dir.join(format!("station-{i}.json5")), text).unwrap();
+    }
+    std::fs::write(dir.join("ops.json5"), client(port, acl.then_some("ops"))).unwrap();
     let child = common::basestation()
-        .args(["router", "--bus", &format!("tcp/127.0.0.1:{port}")])
+        .current_dir(dir)
+        .args(["router", "--zenoh", "router.json5"])
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
@@ -78,21 +146,26 @@ fn page_rate(dir: &Path, url: &str, seconds: u64) -> Option<f64> {
 
 fn main() {
     let (n, seconds) = (arg("--formations", 50), arg("--seconds", 30));
+    let acl = std::env::args().any(|a| a == "--acl");
     let dir = common::scratch("bus-bench");
     let port = free_tcp_port();
-    let router = configure(&dir, port);
+    let router = configure(&dir, port, n, acl);
     std::thread::sleep(Duration::from_millis(500));
     let duration = (seconds + 120) as f64;
     let mut stations = Vec::new();
     for i in 0..n {
-        let (site, name) = (format!("district-{}", i % 5), format!("f{i:02}"));
-        stations.push(station_for(&dir, "station.json5", &site, &name, duration));
+        let (site, name) = formation(i);
+        let config = format!("station-{i}.json5");
+        stations.push(station_for(&dir, &config, &site, &name, duration));
         std::thread::sleep(Duration::from_millis(100));
     }
     let (ops_process, url) = ops(&dir);
     let api = Api::of(&url);
     api.until(Duration::from_secs(90), "every formation live", |s| {
-        (0..n).all(|i| live_with_robots(s, &format!("district-{}/f{i:02}", i % 5)))
+        (0..n).all(|i| {
+            let (site, name) = formation(i);
+            live_with_robots(s, &format!("{site}/{name}"))
+        })
     });
     std::thread::sleep(Duration::from_secs(3));
     let bus = |api: &Api| api.state()["bus"].clone();
@@ -107,6 +180,14 @@ fn main() {
     let (b1, wall) = (bus(&api), t0.elapsed().as_secs_f64());
     let cpu1 = (cpu_s(router.0.id()), cpu_s(ops_process.0.id()));
     let cpu = (cpu1.0 - cpu0.0, cpu1.1 - cpu0.1);
+    println!(
+        "access control      {}",
+        if acl {
+            "on (a rule per formation)"
+        } else {
+            "off"
+        }
+    );
     report(n, wall, (&b0, &b1), &windows, cpu, rate);
     drop(stations);
 }
