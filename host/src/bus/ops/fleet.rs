@@ -12,6 +12,11 @@ use crate::bus::keys::{self, Formation, Topic};
 
 /// Events kept per formation.
 const EVENTS_KEPT: usize = 8;
+/// What `ops` holds at most, whatever a station publishes: a payload's bytes (a city
+/// block's map is tens of KiB), formations, robots per formation.
+pub const MAX_PAYLOAD: usize = 1 << 20;
+pub const MAX_FORMATIONS: usize = 1024;
+pub const MAX_ROBOTS: usize = 256;
 /// A live station that published nothing for this long is shown as silent.
 pub const SILENT_AFTER: Duration = Duration::from_secs(2);
 
@@ -90,7 +95,12 @@ impl Fleet {
         let Some((formation, topic)) = keys::parse(key) else {
             return;
         };
-        let Ok(value) = serde_json::from_slice::<Value>(payload) else {
+        let known = self.views.contains_key(&formation);
+        let room = known || self.views.len() < MAX_FORMATIONS;
+        let parsed = (payload.len() <= MAX_PAYLOAD && room)
+            .then(|| serde_json::from_slice::<Value>(payload).ok())
+            .flatten();
+        let Some(value) = parsed else {
             self.malformed += 1;
             return;
         };
@@ -113,6 +123,10 @@ impl Fleet {
                 return;
             }
             Topic::Robot { id, topic } => {
+                if !view.robots.contains_key(&id) && view.robots.len() >= MAX_ROBOTS {
+                    self.malformed += 1;
+                    return;
+                }
                 let robot = view.robots.entry(id).or_default();
                 match topic.as_str() {
                     "pose" => &mut robot.pose,
@@ -174,6 +188,9 @@ impl Fleet {
         let Some((formation, Topic::Station)) = keys::parse(key) else {
             return;
         };
+        if !self.views.contains_key(&formation) && self.views.len() >= MAX_FORMATIONS {
+            return;
+        }
         let view = self.views.entry(formation).or_insert_with(View::new);
         view.presence = if live {
             Presence::Live
@@ -340,6 +357,30 @@ mod tests {
         fleet.presence("sweeper/north/a/station", false, t0);
         let s = fleet.state(t0 + SILENT_AFTER * 2);
         assert_eq!(s["formations"][0]["alerts"], json!(["station lost"]));
+    }
+
+    #[test]
+    fn what_a_station_publishes_is_bounded() {
+        let mut fleet = Fleet::default();
+        let t0 = Instant::now();
+        let huge = vec![b' '; MAX_PAYLOAD + 1];
+        fleet.sample("sweeper/s/f/formation", &huge, t0, true);
+        for id in 0..=MAX_ROBOTS as u16 {
+            let key = format!("sweeper/s/f/robot/{id}/pose");
+            fleet.sample(&key, br#"{"t_s":1}"#, t0, true);
+        }
+        assert_eq!(fleet.malformed, 2);
+        assert_eq!(
+            fleet.state(t0)["formations"][0]["robots"]
+                .as_array()
+                .unwrap()
+                .len(),
+            MAX_ROBOTS
+        );
+        for i in 0..MAX_FORMATIONS + 5 {
+            fleet.sample(&format!("sweeper/s/g{i}/formation"), b"{}", t0, true);
+        }
+        assert_eq!(fleet.labels().len(), MAX_FORMATIONS);
     }
 
     #[test]
