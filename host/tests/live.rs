@@ -4,7 +4,6 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
@@ -35,18 +34,9 @@ fn a_foxglove_client_receives_the_robots_poses_live() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut stderr = BufReader::new(sim.stderr.take().unwrap());
-    let url = loop {
-        let mut line = String::new();
-        assert!(
-            stderr.read_line(&mut line).unwrap() > 0,
-            "sim ended without serving"
-        );
-        if let Some(url) = line.trim().strip_prefix("live (Foxglove WebSocket): ") {
-            break url.to_string();
-        }
-    };
-    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
+    let prefix = "live (Foxglove WebSocket): ";
+    let line = common::stderr_line(&mut sim, prefix, "sim ended without serving");
+    let url = line.strip_prefix(prefix).unwrap().to_string();
     let _sim = Killed(sim);
 
     let request_to = |url: &str, origin: Option<&str>| {

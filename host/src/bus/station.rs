@@ -131,13 +131,18 @@ impl Worker {
         };
         let label = formation.label();
         let joined = Joined::declare(&session, &formation);
-        let (token, queries, cache) = match joined {
-            Ok(j) => (j.token, j.commands, j.cache),
+        let Joined {
+            token,
+            commands: queries,
+            cache: _cache,
+            latest,
+        } = match joined {
+            Ok(j) => j,
             Err(e) => return tracing::error!("bus: cannot join as {label}: {e}"),
         };
         tracing::info!("bus: joined as {label}");
         let mut worker = Worker {
-            latest: cache.1.clone(),
+            latest,
             session,
             formation,
             publishers: HashMap::new(),
@@ -280,7 +285,9 @@ fn open_until_ready(config: &zenoh::Config, rx: &Receiver<Out>) -> Option<zenoh:
 struct Joined {
     token: zenoh::liveliness::LivelinessToken,
     commands: zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<Query>>,
-    cache: (zenoh::query::Queryable<()>, Latest),
+    /// Answers late joiners from `latest` while it is held.
+    cache: zenoh::query::Queryable<()>,
+    latest: Latest,
 }
 
 impl Joined {
@@ -308,7 +315,8 @@ impl Joined {
         Ok(Self {
             token,
             commands,
-            cache: (cache, latest),
+            cache,
+            latest,
         })
     }
 }

@@ -10,7 +10,7 @@ use anyhow::Context;
 use clap::Args;
 
 use crate::bus;
-use crate::live::console::{guard::Guard, reachable_at, server, url_of};
+use crate::live::console::server;
 
 /// Where `ops` and `router` listen when no configuration file says.
 pub const DEFAULT_BUS: &str = "tcp/127.0.0.1:7447";
@@ -74,17 +74,12 @@ pub fn run(args: OpsArgs) -> anyhow::Result<()> {
     if args.zenoh.is_none() {
         eprintln!("ops: the bus's router is this process, on {}", args.bus);
     }
-    let listener = std::net::TcpListener::bind(args.page)
-        .with_context(|| format!("cannot serve the operations page on {}", args.page))?;
-    let bound = listener.local_addr()?;
-    let addresses = reachable_at(bound);
-    let guard = Guard::new(bound, &addresses)?;
-    let urls: Vec<String> = addresses.iter().map(|a| url_of(*a, bound.port())).collect();
-    eprintln!("ops: {}#pair={}", urls[0], guard.code());
+    let page = server::open("operations page", args.page, ops.backend())?;
+    eprintln!("ops: {}", page.url);
     eprintln!(
         "ops: pairing code {} (open {})",
-        guard.code(),
-        urls.join(" or ")
+        page.shared.guard.code(),
+        page.urls.join(" or ")
     );
     if let Ok(fleet) = ops.fleet.lock() {
         let known = fleet.labels();
@@ -94,11 +89,6 @@ pub fn run(args: OpsArgs) -> anyhow::Result<()> {
             known.join(", ")
         );
     }
-    let shared = Arc::new(server::Shared {
-        guard,
-        backend: ops.backend(),
-    });
-    let _page = server::spawn("ops page", listener, shared)?;
     wait_for_interrupt()
 }
 

@@ -2,7 +2,7 @@
 //! in a scratch directory, `basestation router`, stations (`sim --realtime --zenoh`) and
 //! `ops` as processes, and `ops`'s page API as a script uses it.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
 use std::process::Stdio;
@@ -99,17 +99,8 @@ pub fn ops(dir: &Path) -> (Killed, String) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.starts_with("ops: http") {
-        line.clear();
-        assert!(
-            stderr.read_line(&mut line).unwrap() > 0,
-            "ops printed no URL"
-        );
-    }
-    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
-    let url = line.trim().strip_prefix("ops: ").unwrap().to_string();
+    let line = super::stderr_line(&mut child, "ops: http", "ops printed no URL");
+    let url = line.strip_prefix("ops: ").unwrap().to_string();
     (Killed(child), url)
 }
 

@@ -45,6 +45,23 @@ pub fn sim_into(dir: &Path, scenario: &str, args: &[&str]) -> (Output, PathBuf) 
     (out, report)
 }
 
+/// Reads `child`'s standard error up to the first line that starts with `prefix` and
+/// returns that line, trimmed; its standard error is drained after that (a closed pipe
+/// would end the process at its next log line). Panics, saying `what`, if it ends first.
+pub fn stderr_line(child: &mut Child, prefix: &str, what: &str) -> String {
+    use std::io::BufRead;
+    let mut stderr = std::io::BufReader::new(child.stderr.take().expect("a piped stderr"));
+    let found = loop {
+        let mut line = String::new();
+        assert!(stderr.read_line(&mut line).unwrap() > 0, "{what}");
+        if line.starts_with(prefix) {
+            break line.trim().to_string();
+        }
+    };
+    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
+    found
+}
+
 /// A child process killed when dropped (a failing test leaves nothing running).
 pub struct Killed(pub Child);
 

@@ -161,13 +161,17 @@ impl Fleet {
         let Some(t) = value["t_s"].as_f64() else {
             return;
         };
-        if let Some(last) = self.last_t.insert(key.to_string(), t) {
-            let missed = ((t - last) / PERIOD_S).round() as i64 - 1;
-            // A restarted station's clock starts again: no gap to count.
-            if missed > 0 && t > last {
-                self.lost += missed as u64;
-            }
+        // The key is copied once, the first time it is seen.
+        let Some(last) = self.last_t.get_mut(key) else {
+            self.last_t.insert(key.to_string(), t);
+            return;
+        };
+        let missed = ((t - *last) / PERIOD_S).round() as i64 - 1;
+        // A restarted station's clock starts again: no gap to count.
+        if missed > 0 && t > *last {
+            self.lost += missed as u64;
         }
+        *last = t;
     }
 
     /// The bus as `ops` sees it: samples, malformed, lost, and latency percentiles (ms).

@@ -303,9 +303,8 @@ fn parse(body: &[u8]) -> Result<(Formation, &'static str), &'static str> {
     let label = v["formation"].as_str().ok_or(EXPECTED)?;
     let (site, name) = label.split_once('/').ok_or(EXPECTED)?;
     let formation = Formation::new(site, name).map_err(|_| EXPECTED)?;
-    let command = v.get("command").cloned().ok_or(EXPECTED)?;
-    let text = json!({ "command": command }).to_string();
-    let c = crate::live::console::parse_command(&text).ok_or(EXPECTED)?;
+    let name = v["command"].as_str().ok_or(EXPECTED)?;
+    let c = crate::live::console::command_named(name).ok_or(EXPECTED)?;
     Ok((formation, c.name()))
 }
 

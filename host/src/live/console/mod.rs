@@ -19,7 +19,6 @@ use std::sync::mpsc::{self, Receiver};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
-use anyhow::Context;
 use base_station::station::{BaseStation, Gate, OperatorCommand};
 use serde_json::{json, Value};
 
@@ -43,7 +42,7 @@ pub struct Console {
 
 /// The addresses a listener bound to `bound` answers on: `bound`'s own, or every
 /// interface's of its family when it is the unspecified address. Non-loopback first.
-pub fn reachable_at(bound: SocketAddr) -> Vec<IpAddr> {
+fn reachable_at(bound: SocketAddr) -> Vec<IpAddr> {
     let ip = bound.ip();
     if !ip.is_unspecified() {
         return vec![ip];
@@ -74,7 +73,7 @@ pub fn reachable_at(bound: SocketAddr) -> Vec<IpAddr> {
     addresses
 }
 
-pub fn url_of(ip: IpAddr, port: u16) -> String {
+fn url_of(ip: IpAddr, port: u16) -> String {
     match ip {
         IpAddr::V4(v4) => format!("http://{v4}:{port}/"),
         IpAddr::V6(v6) => format!("http://[{v6}]:{port}/"),
@@ -85,29 +84,19 @@ impl Console {
     /// Serves the console on `addr` (port 0: any free port), with the site's static
     /// picture (`map`: obstacles and bounds).
     pub fn start(addr: SocketAddr, map: Value) -> anyhow::Result<Self> {
-        let listener = std::net::TcpListener::bind(addr)
-            .with_context(|| format!("cannot serve the console on {addr}"))?;
-        let bound = listener.local_addr()?;
-        let addresses = reachable_at(bound);
-        let guard = guard::Guard::new(bound, &addresses)?;
-        let urls: Vec<String> = addresses.iter().map(|a| url_of(*a, bound.port())).collect();
-        let url = format!("{}#pair={}", urls[0], guard.code());
         let (tx, commands) = mpsc::sync_channel(server::COMMANDS);
-        let shared = Arc::new(server::Shared {
-            guard,
-            backend: server::Station {
-                snapshot: Mutex::new(Arc::from("{}")),
-                map: Arc::from(map.to_string()),
-                commands: tx,
-            },
-        });
-        let thread = server::spawn("console", listener, shared.clone())?;
+        let station = server::Station {
+            snapshot: Mutex::new(Arc::from("{}")),
+            map: Arc::from(map.to_string()),
+            commands: tx,
+        };
+        let served = server::open("console", addr, station)?;
         Ok(Self {
-            shared,
+            shared: served.shared,
             commands,
-            thread,
-            url,
-            urls,
+            thread: served.thread,
+            url: served.url,
+            urls: served.urls,
             reported_dead: std::cell::Cell::new(false),
         })
     }
@@ -168,12 +157,18 @@ impl Console {
 
 pub fn parse_command(body: &str) -> Option<OperatorCommand> {
     let v: Value = serde_json::from_str(body).ok()?;
-    match v.get("command")?.as_str()? {
-        "stop" => Some(OperatorCommand::Stop),
-        "emergency_stop" => Some(OperatorCommand::EmergencyStop),
-        "resume" => Some(OperatorCommand::Resume),
-        _ => None,
-    }
+    command_named(v.get("command")?.as_str()?)
+}
+
+/// The operator's command by its name on the wire (`stop`, `emergency_stop`, `resume`).
+pub fn command_named(name: &str) -> Option<OperatorCommand> {
+    [
+        OperatorCommand::Stop,
+        OperatorCommand::EmergencyStop,
+        OperatorCommand::Resume,
+    ]
+    .into_iter()
+    .find(|c| c.name() == name)
 }
 
 /// `text` as a QR code in terminal characters (two rows a character), light on dark

@@ -92,8 +92,41 @@ impl Backend for Station {
     }
 }
 
+/// A page served: what it serves, its thread, and where to open it.
+pub struct Served<B> {
+    pub shared: Arc<Shared<B>>,
+    pub thread: std::thread::JoinHandle<()>,
+    /// The page with its pairing code, on the first of its addresses.
+    pub url: String,
+    /// Every address the page can be opened at (the interfaces', bound to all).
+    pub urls: Vec<String>,
+}
+
+/// Serves `backend`'s page on `addr` (port 0: any free port) as `name`, guarded by a fresh
+/// pairing code.
+pub fn open<B: Backend>(name: &str, addr: SocketAddr, backend: B) -> anyhow::Result<Served<B>> {
+    let listener = std::net::TcpListener::bind(addr)
+        .map_err(|e| anyhow::anyhow!("cannot serve the {name} on {addr}: {e}"))?;
+    let bound = listener.local_addr()?;
+    let addresses = super::reachable_at(bound);
+    let guard = Guard::new(bound, &addresses)?;
+    let urls: Vec<String> = addresses
+        .iter()
+        .map(|a| super::url_of(*a, bound.port()))
+        .collect();
+    let url = format!("{}#pair={}", urls[0], guard.code());
+    let shared = Arc::new(Shared { guard, backend });
+    let thread = spawn(name, listener, shared.clone())?;
+    Ok(Served {
+        shared,
+        thread,
+        url,
+        urls,
+    })
+}
+
 /// Serves `listener` on a thread named `name` with a runtime of its own.
-pub fn spawn<B: Backend>(
+fn spawn<B: Backend>(
     name: &str,
     listener: std::net::TcpListener,
     shared: Arc<Shared<B>>,
