@@ -59,7 +59,12 @@ fn a_foxglove_client_receives_the_robots_poses_live() {
     // Issue 52, finding 4: the stream is served by the station itself, on this address
     // only, and wants the run's token: a local process without it reads nothing.
     let (base, token) = url.split_once("?token=").expect("the URL carries a token");
-    for wrong in [base.to_string(), format!("{base}?token=0{}", &token[1..])] {
+    // A token one digit off (the first digit changed, whatever it was) is refused too.
+    let flipped = if token.starts_with('0') { '1' } else { '0' };
+    for wrong in [
+        base.to_string(),
+        format!("{base}?token={flipped}{}", &token[1..]),
+    ] {
         match tungstenite::connect(request_to(&wrong, None)) {
             Err(tungstenite::Error::Http(response)) => assert_eq!(response.status(), 401),
             other => panic!("{wrong} opened the stream: {:?}", other.map(|_| ())),
