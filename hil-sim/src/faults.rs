@@ -10,6 +10,7 @@ use control_core::controller::{MotorOutput, Sensors};
 use protocol::link::{Link, Timing};
 use protocol::messages::{
     Detour, Hello, LeaderState, Message, PoseFix, RobotMode, VelocityCommand, Welcome, WirePose,
+    WireTwist,
 };
 use protocol::{Address, FleetKey, FrameDecoder, RejectCounts, MAX_WIRE};
 use rand::{Rng, SeedableRng};
@@ -32,8 +33,16 @@ fn is_welcome(id: u8) -> bool {
     .id()
 }
 
+/// What a captured robot hears of the base station: its session, the number of its last
+/// broadcast and its clock now.
+pub struct Heard {
+    pub session: u32,
+    pub broadcast_seq: u32,
+    pub base_ms: u32,
+}
+
 /// The header of one wire frame (COBS, with its delimiter), if it parses.
-fn decoded_header(wire: &[u8]) -> Option<protocol::Header> {
+fn decoded_header(wire: &[u8]) -> Option<protocol::frame::WireHeader> {
     let mut decoder = FrameDecoder::new();
     for b in wire {
         if let Some(raw) = decoder.push(*b) {
@@ -263,21 +272,21 @@ impl Injector {
     }
 
     /// A captured robot's forgeries during one step of `step_s` ending at `t_us`: sealed
-    /// with the genuine broadcast key, in the base station's `session` (it is public, in
-    /// every `Welcome`), numbered above any genuine broadcast.
-    /// `link`: the broadcast key and the station's session, asked only while the attack
-    /// runs.
+    /// with the genuine broadcast key, in the base station's session (it is public, in
+    /// every `Welcome`), numbered just above the genuine broadcasts and stamped with the
+    /// station's clock, both as the robot hears them.
+    /// `link`: the broadcast key and what the robot heard, asked only while the attack runs.
     pub fn captured(
         &mut self,
         t_us: u64,
         step_s: f64,
-        link: impl FnOnce() -> (FleetKey, u32),
+        link: impl FnOnce() -> (FleetKey, Heard),
     ) -> Vec<u8> {
         let mut out = Vec::new();
         let Some(f) = self.active(FaultKind::CapturedRobot, t_us as f64 / 1e6) else {
             return out;
         };
-        let (key, session) = link();
+        let (key, heard) = link();
         self.owed_captured += f.value.unwrap_or(0.0) * step_s;
         let far = WirePose::from_si(30.0, 30.0, 0.0).unwrap_or_default();
         while self.owed_captured >= 1.0 {
@@ -302,10 +311,11 @@ impl Injector {
                 id: message.id(),
                 from: Address::Base,
                 to: Address::Broadcast,
-                seq: 0x4000_0000 + self.captured_sent,
-                time_ms: (t_us / 1000) as u32,
+                seq: heard.broadcast_seq.wrapping_add(1),
+                time_ms: heard.base_ms,
             };
             let mut buf = [0u8; MAX_WIRE];
+            let session = heard.session;
             if let Ok(n) = protocol::frame::seal(&key, session, &header, &message, &mut buf) {
                 out.extend_from_slice(&buf[..n]);
             }
@@ -337,8 +347,7 @@ impl Injector {
                         0.0,
                     )
                     .unwrap_or_default(),
-                    v_mm_s: 1000,
-                    omega_mrad_s: 1000,
+                    twist: WireTwist::new(1000, 1000),
                     blend: 0,
                 });
                 let mut buf = [0u8; MAX_WIRE];

@@ -22,7 +22,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use base_station::formation::{smoothstep, transition_blend, Reason, Target, Transformation};
-use protocol::frame::{self, Address};
+use protocol::frame::{self, Address, WireHeader};
 use protocol::messages::RobotMode;
 use protocol::{FrameDecoder, Message};
 
@@ -45,6 +45,9 @@ pub struct AirObserver {
     /// The base station's recent frames' apparent latency (heard − stamped), s: the
     /// least is the offset of its clock to the world's.
     latencies: VecDeque<f64>,
+    /// The station's last stamp, whole, and when it was heard (world clock, s): frames carry
+    /// their clock's low bits, completed from it.
+    last_stamp: Option<(u32, f64)>,
 }
 
 /// How many of the station's frames the clock mapping looks back on (5 s at 10 Hz and a
@@ -78,6 +81,7 @@ impl AirObserver {
             modes: BTreeMap::new(),
             transformations: Vec::new(),
             latencies: VecDeque::new(),
+            last_stamp: None,
         }
     }
 
@@ -88,17 +92,42 @@ impl AirObserver {
         for &b in bytes {
             if let Some(Ok(raw)) = decoder.push(b) {
                 if let Ok((header, message)) = frame::parse_unverified(raw) {
-                    messages.push((header.from, header.to, header.time_ms, message));
+                    messages.push((header.from, header.to, header, message));
                 }
             }
         }
-        for (sender, to, stamp_ms, message) in messages {
+        for (sender, to, header, message) in messages {
             let t_s = match sender {
-                Address::Base => self.station_time(stamp_ms, t_s),
+                Address::Base => {
+                    let stamp_ms = self.whole_stamp(&header, t_s);
+                    self.station_time(stamp_ms, t_s)
+                }
                 _ => t_s,
             };
             self.absorb(sender, to, message, t_s);
         }
+    }
+
+    /// The station's whole clock on a frame heard at `heard_s`: carried on a handshake
+    /// frame, else completed from the last one heard (the first from the world's clock; a
+    /// wrong guess there shifts every stamp alike, which the latency offset absorbs).
+    fn whole_stamp(&mut self, header: &WireHeader, heard_s: f64) -> u32 {
+        let near = match self.last_stamp {
+            Some((stamp, at)) => stamp.wrapping_add(((heard_s - at) * 1000.0) as u32),
+            None => (heard_s * 1000.0) as u32,
+        };
+        let whole = if header.whole {
+            header.time_ms
+        } else {
+            frame::complete(
+                header.time_ms,
+                frame::TIME_BITS,
+                near,
+                frame::TIME_BEHIND_MS,
+            )
+        };
+        self.last_stamp = Some((whole, heard_s));
+        whole
     }
 
     /// When the station stamped a frame heard at `heard_s`, on the world's clock.
@@ -205,14 +234,13 @@ impl FleetView for AirObserver {
 mod tests {
     use super::*;
     use protocol::link::{Link, Timing};
-    use protocol::messages::{LeaderState, WirePose};
+    use protocol::messages::{LeaderState, WirePose, WireTwist};
     use protocol::MasterKey;
 
     fn leader_state(blend: u8) -> Message {
         Message::LeaderState(LeaderState {
             pose: WirePose::default(),
-            v_mm_s: 0,
-            omega_mrad_s: 0,
+            twist: WireTwist::default(),
             blend,
         })
     }

@@ -23,7 +23,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 use crate::brain::{Brain, BrainError, NativeBrain};
-use crate::faults::{Action, DeadBrain, Injector};
+use crate::faults::{Action, DeadBrain, Heard, Injector};
 use crate::metrics::{FleetView, Recorder, StationView, Tracked};
 use crate::movers::{MoverState, Movers, RobotBody};
 use crate::observer::AirObserver;
@@ -494,9 +494,15 @@ impl World {
             }
         }
         let mut attack = self.injector.attack(self.t_us, step_us as f64 / 1e6);
-        let (options, station) = (&self.options, &self.station);
+        let (options, station, base_ms) = (&self.options, &self.station, self.base_ms());
         attack.extend(self.injector.captured(self.t_us, step_us as f64 / 1e6, || {
-            (options.fleet_key().broadcast(), station.link().session())
+            let link = station.link();
+            let heard = Heard {
+                session: link.session(),
+                broadcast_seq: link.broadcast_seq(),
+                base_ms,
+            };
+            (options.fleet_key().broadcast(), heard)
         }));
         if !attack.is_empty() {
             let attacker = self.robots.len() + 1;

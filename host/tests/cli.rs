@@ -369,8 +369,7 @@ fn decode_reads_genuine_frames_and_verifies_with_the_key() {
     capture.extend_from_slice(b"\x05junk\x00");
     let state = Message::LeaderState(LeaderState {
         pose: WirePose::from_si(1.0, 2.0, 0.5).unwrap(),
-        v_mm_s: 400,
-        omega_mrad_s: 0,
+        twist: WireTwist::new(400, 0),
         blend: 0,
     });
     let n = base
@@ -389,7 +388,7 @@ fn decode_reads_genuine_frames_and_verifies_with_the_key() {
     assert_eq!(lines[0]["verified"], false);
     assert_eq!(lines[1]["ok"], false);
     assert_eq!(lines[2]["message"], "LeaderState");
-    assert_eq!(lines[2]["fields"]["LeaderState"]["v_mm_s"], 400);
+    assert_eq!(lines[2]["fields"]["LeaderState"]["twist"]["v_mm_s"], 400);
 
     let dir = std::env::temp_dir().join(format!("basestation-key-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -10,7 +10,7 @@ use mavlink::dialects::common::{
 };
 use mavlink::{MavHeader, MavlinkVersion, SigningConfig, SigningData};
 use protocol::link::{Event, Link, Timing};
-use protocol::messages::{LeaderState, Message, WirePose};
+use protocol::messages::{LeaderState, Message, WirePose, WireTwist};
 use protocol::{Address, FrameDecoder, MasterKey, MAX_WIRE};
 
 const KEY: [u8; 32] = [0x5a; 32];
@@ -18,8 +18,7 @@ const KEY: [u8; 32] = [0x5a; 32];
 fn leader_state(i: u32) -> LeaderState {
     LeaderState {
         pose: WirePose::from_si(12.345 + i as f32 * 1e-3, 7.89, 0.785).unwrap(),
-        v_mm_s: 400,
-        omega_mrad_s: -120,
+        twist: WireTwist::new(400, -120),
         blend: 0,
     }
 }

@@ -60,24 +60,27 @@ impl FleetKey {
         Ok(key)
     }
 
-    fn mac(&self, schema_key: &[u8; 8], session: u32, body: &[u8]) -> Mac64 {
+    fn mac(&self, schema_key: &[u8; 8], session: u32, parts: &[&[u8]]) -> Mac64 {
         let mut mac = self.keyed.clone();
         mac.update(schema_key);
         mac.update(&session.to_le_bytes());
-        mac.update(body);
+        for part in parts {
+            mac.update(part);
+        }
         mac
     }
 
-    /// The tag over a frame's header and payload.
-    pub fn tag(&self, schema_key: &[u8; 8], session: u32, body: &[u8]) -> [u8; TAG_LEN] {
+    /// The tag over a frame's parts (what the receiver knows of the frame besides its
+    /// bytes, then the bytes), in order.
+    pub fn tag(&self, schema_key: &[u8; 8], session: u32, parts: &[&[u8]]) -> [u8; TAG_LEN] {
         let mut tag = [0u8; TAG_LEN];
-        tag.copy_from_slice(&self.mac(schema_key, session, body).finalize().into_bytes());
+        tag.copy_from_slice(&self.mac(schema_key, session, parts).finalize().into_bytes());
         tag
     }
 
     /// Checks a tag in constant time.
-    pub fn verify(&self, schema_key: &[u8; 8], session: u32, body: &[u8], tag: &[u8]) -> bool {
-        self.mac(schema_key, session, body)
+    pub fn verify(&self, schema_key: &[u8; 8], session: u32, parts: &[&[u8]], tag: &[u8]) -> bool {
+        self.mac(schema_key, session, parts)
             .verify_slice(tag)
             .is_ok()
     }
@@ -195,13 +198,14 @@ mod tests {
     fn tag_depends_on_key_schema_session_and_body() {
         let k = FleetKey::from_bytes(&[7; 32]);
         let other = FleetKey::from_bytes(&[8; 32]);
-        let t = k.tag(&[1; 8], 5, b"body");
-        assert!(k.verify(&[1; 8], 5, b"body", &t));
-        assert!(!other.verify(&[1; 8], 5, b"body", &t));
-        assert!(!k.verify(&[2; 8], 5, b"body", &t));
-        assert!(!k.verify(&[1; 8], 6, b"body", &t));
-        assert!(!k.verify(&[1; 8], 5, b"bodY", &t));
-        assert!(!k.verify(&[1; 8], 5, b"body", &t[..7]));
+        let t = k.tag(&[1; 8], 5, &[b"seq", b"body"]);
+        assert!(k.verify(&[1; 8], 5, &[b"seq", b"body"], &t));
+        assert!(!other.verify(&[1; 8], 5, &[b"seq", b"body"], &t));
+        assert!(!k.verify(&[2; 8], 5, &[b"seq", b"body"], &t));
+        assert!(!k.verify(&[1; 8], 6, &[b"seq", b"body"], &t));
+        assert!(!k.verify(&[1; 8], 5, &[b"seQ", b"body"], &t));
+        assert!(!k.verify(&[1; 8], 5, &[b"seq", b"bodY"], &t));
+        assert!(!k.verify(&[1; 8], 5, &[b"seq", b"body"], &t[..7]));
     }
 
     #[test]

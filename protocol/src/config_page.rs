@@ -51,7 +51,7 @@ impl ConfigPage {
         page[6] = self.leader as u8;
         page[8..40].copy_from_slice(&self.broadcast_key);
         page[40..72].copy_from_slice(&self.robot_key);
-        let check = FleetKey::from_bytes(&self.robot_key).tag(DOMAIN, 0, &page[..72]);
+        let check = FleetKey::from_bytes(&self.robot_key).tag(DOMAIN, 0, &[&page[..72]]);
         page[72..].copy_from_slice(&check);
         page
     }
@@ -64,7 +64,7 @@ impl ConfigPage {
         let mut robot_key = [0u8; 32];
         broadcast_key.copy_from_slice(&page[8..40]);
         robot_key.copy_from_slice(&page[40..72]);
-        if !FleetKey::from_bytes(&robot_key).verify(DOMAIN, 0, &page[..72], &page[72..80]) {
+        if !FleetKey::from_bytes(&robot_key).verify(DOMAIN, 0, &[&page[..72]], &page[72..80]) {
             return None;
         }
         Some(ConfigPage {

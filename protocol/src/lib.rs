@@ -37,7 +37,7 @@ pub use messages::Message;
 pub use stream::FrameDecoder;
 
 /// Protocol version, carried in the top three bits of every frame's first byte.
-pub const PROTOCOL_VERSION: u8 = 1;
+pub const PROTOCOL_VERSION: u8 = 2;
 /// Bytes of the authentication tag at the end of every frame.
 pub const TAG_LEN: usize = 8;
 /// Largest frame before COBS encoding (header + payload + tag).

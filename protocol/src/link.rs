@@ -31,7 +31,7 @@ const OUTSTANDING: usize = 4;
 const CHALLENGE_LIFETIME_MS: u32 = 3000;
 
 use crate::auth::FleetKey;
-use crate::frame::{self, Address, EncodeError, Header};
+use crate::frame::{self, Address, EncodeError, Expect, Header, WireHeader};
 use crate::messages::{Destination, Hello, Message, Welcome};
 use crate::{Reject, RejectCounts, PROTOCOL_VERSION};
 
@@ -81,6 +81,40 @@ impl Stream {
     }
 }
 
+/// A peer's clock as its accepted frames show it, to complete their headers' low bits:
+/// the largest `peer clock − our clock` seen (the least delayed frame), decaying 1 ms per
+/// 1.024 s so that a peer's crystal running slower than ours is followed (a thousand
+/// times any crystal's drift). Only verified frames move it.
+#[derive(Debug, Clone, Copy, Default)]
+struct PeerClock {
+    /// Peer clock minus our clock (wrapping), and our clock then.
+    ahead: Option<(u32, u32)>,
+}
+
+impl PeerClock {
+    /// The peer's clock now, if any frame of its session was heard.
+    fn now(&self, now_ms: u32) -> Option<u32> {
+        self.ahead.map(|(ahead, at)| {
+            now_ms
+                .wrapping_add(ahead)
+                .wrapping_sub(now_ms.wrapping_sub(at) >> 10)
+        })
+    }
+
+    /// A verified frame stamped `time_ms` arrived at `now_ms`; `same`: of the session
+    /// already known (a new session's clock starts afresh).
+    fn heard(&mut self, time_ms: u32, now_ms: u32, same: bool) {
+        let ahead = time_ms.wrapping_sub(now_ms);
+        let keep = same
+            && self
+                .now(now_ms)
+                .is_some_and(|t| (t.wrapping_sub(now_ms).wrapping_sub(ahead) as i32) > 0);
+        if !keep {
+            self.ahead = Some((ahead, now_ms));
+        }
+    }
+}
+
 /// What this link knows about one peer.
 #[derive(Debug, Clone)]
 pub struct Peer {
@@ -106,6 +140,8 @@ pub struct Peer {
     pub rtt_ms: Option<u32>,
     /// Our clock when the offset was measured.
     synced_ms: u32,
+    /// The peer's clock as its frames show it: see [`PeerClock`].
+    clock: PeerClock,
     pub accepted: u32,
     pub lost: u32,
     /// Rejected frames whose (unverified) header named this peer as sender.
@@ -145,6 +181,7 @@ impl Peer {
             _ => new,
         };
         self.session = Some(welcome.session);
+        self.clock.heard(header.time_ms, now_ms, same);
         self.rx_unicast.last = Some(floor(self.rx_unicast.last, header.seq));
         self.rx_broadcast.last = Some(floor(self.rx_broadcast.last, welcome.broadcast_seq));
         self.last_rx_ms = Some(now_ms);
@@ -182,9 +219,27 @@ impl Peer {
             clock_offset_ms: None,
             rtt_ms: None,
             synced_ms: 0,
+            clock: PeerClock::default(),
             accepted: 0,
             lost: 0,
             rejects: RejectCounts::default(),
+        }
+    }
+
+    /// What we expect of the peer's next frame on `wire`'s stream.
+    fn expect(&self, wire: &WireHeader, now_ms: u32) -> Result<Expect, Reject> {
+        let stream = if wire.to == Address::Broadcast {
+            &self.rx_broadcast
+        } else {
+            &self.rx_unicast
+        };
+        match (self.session, stream.last, self.clock.now(now_ms)) {
+            (Some(session), Some(last), Some(time_ms)) => Ok(Expect {
+                session,
+                seq: last.wrapping_add(1),
+                time_ms,
+            }),
+            _ => Err(Reject::UnknownSession),
         }
     }
 
@@ -269,6 +324,11 @@ impl<const PEERS: usize> Link<PEERS> {
 
     pub fn session(&self) -> u32 {
         self.session
+    }
+
+    /// The number of our last broadcast (public: every `Welcome` carries it).
+    pub fn broadcast_seq(&self) -> u32 {
+        self.broadcast_seq
     }
 
     /// Adds a peer with the key of its unicast frames and handshake; returns false when
@@ -426,12 +486,12 @@ impl<const PEERS: usize> Link<PEERS> {
         to: Address,
         now_ms: u32,
     ) -> Result<Event, Reject> {
-        let session = self.peers[i].session;
+        let peer = &self.peers[i];
         let key = match to {
             Address::Broadcast => &self.broadcast_key,
-            _ => &self.peers[i].key,
+            _ => &peer.key,
         };
-        let (header, message) = frame::open(key, raw, |_| session.ok_or(Reject::UnknownSession))?;
+        let (header, message) = frame::open(key, raw, |wire| peer.expect(wire, now_ms))?;
         if to == Address::Broadcast && Message::destination(header.id) == Some(Destination::Unicast)
         {
             return Err(Reject::WrongDestination);
@@ -463,6 +523,7 @@ impl<const PEERS: usize> Link<PEERS> {
                     &mut peer.rx_unicast
                 };
                 let skipped = stream.advance(header.seq)?;
+                peer.clock.heard(header.time_ms, now_ms, true);
                 peer.lost = peer.lost.saturating_add(skipped);
                 peer.accepted = peer.accepted.saturating_add(1);
                 peer.last_rx_ms = Some(now_ms);

@@ -46,14 +46,89 @@ impl WirePose {
     }
 }
 
+/// A velocity pair in three bytes: v in mm/s and ω in mrad/s, twelve bits each (two's
+/// complement, v in the low bits), saturating at ±[`WireTwist::LIMIT`]: the leader-state
+/// frame's budget. JSON shows it as `{"v_mm_s", "omega_mrad_s"}`.
+#[derive(Schema, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireTwist([u8; 3]);
+
+impl WireTwist {
+    /// The largest |v| (mm/s) and |ω| (mrad/s) carried.
+    pub const LIMIT: i16 = 2047;
+
+    pub fn new(v_mm_s: i16, omega_mrad_s: i16) -> Self {
+        let bits = |x: i16| (x.clamp(-Self::LIMIT, Self::LIMIT) as u16 & 0xfff) as u32;
+        let word = bits(v_mm_s) | bits(omega_mrad_s) << 12;
+        Self([word as u8, (word >> 8) as u8, (word >> 16) as u8])
+    }
+
+    /// From SI units (m/s, rad/s).
+    pub fn from_si(v: f32, omega: f32) -> Result<Self, NonFinite> {
+        Ok(Self::new(
+            units::to_milli_i16(v)?,
+            units::to_milli_i16(omega)?,
+        ))
+    }
+
+    fn word(&self) -> u32 {
+        u32::from(self.0[0]) | u32::from(self.0[1]) << 8 | u32::from(self.0[2]) << 16
+    }
+
+    /// Twelve bits sign-extended.
+    fn signed(bits: u32) -> i16 {
+        ((bits as u16) << 4) as i16 >> 4
+    }
+
+    pub fn v_mm_s(&self) -> i16 {
+        Self::signed(self.word() & 0xfff)
+    }
+
+    pub fn omega_mrad_s(&self) -> i16 {
+        Self::signed(self.word() >> 12)
+    }
+}
+
+/// Packed on the wire; as two named integers where people read it (JSON).
+impl Serialize for WireTwist {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        if s.is_human_readable() {
+            let mut st = s.serialize_struct("WireTwist", 2)?;
+            st.serialize_field("v_mm_s", &self.v_mm_s())?;
+            st.serialize_field("omega_mrad_s", &self.omega_mrad_s())?;
+            st.end()
+        } else {
+            s.serialize_newtype_struct("WireTwist", &self.0)
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for WireTwist {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        struct Named {
+            v_mm_s: i16,
+            omega_mrad_s: i16,
+        }
+        #[derive(Deserialize)]
+        struct Packed([u8; 3]);
+        if d.is_human_readable() {
+            Named::deserialize(d).map(|n| Self::new(n.v_mm_s, n.omega_mrad_s))
+        } else {
+            Packed::deserialize(d).map(|p| Self(p.0))
+        }
+    }
+}
+
 /// The leader's state, broadcast by the base station at 10 Hz. The pose is valid at the
 /// frame's timestamp (the base station predicts it to its send time).
 #[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LeaderState {
     pub pose: WirePose,
-    pub v_mm_s: i16,
-    pub omega_mrad_s: i16,
+    /// The leader's v and ω.
+    pub twist: WireTwist,
     /// Formation blend: 0 = wide slots, 255 = line slots, in between = transforming.
     pub blend: u8,
 }

@@ -66,8 +66,7 @@ fn leader_state(x: i32) -> Message {
             y_mm: 0,
             heading: 0,
         },
-        v_mm_s: 100,
-        omega_mrad_s: 0,
+        twist: WireTwist::new(100, 0),
         blend: 0,
     })
 }
@@ -584,4 +583,70 @@ fn a_broadcast_of_a_unicast_only_message_is_refused_however_well_signed() {
     }
     let counts = r1.peer(Address::Base).unwrap().rejects;
     assert_eq!(counts.get(Reject::WrongDestination), 6);
+}
+
+/// Frames carry 8 bits of their sequence number: a robot that misses more of a stream than
+/// they reach refuses the rest (the tag is over the whole number), falls silent, challenges
+/// the base station again, and the answer's floor brings it back.
+#[test]
+fn a_stream_lost_beyond_the_low_bits_is_recovered_by_relinking() {
+    let mut b = base(77);
+    let mut r = robot(1, 5);
+    robot_links_to(&mut r, &mut b, 0);
+    let first = wire(&mut b, Address::Broadcast, 100, leader_state(1));
+    assert!(matches!(
+        deliver(&mut r, &first, 100)[0],
+        Ok(Event::Message { .. })
+    ));
+    // 300 frames (30 s at 10 Hz) the robot never hears; the next ones it cannot place.
+    for i in 0..300 {
+        wire(&mut b, Address::Broadcast, 200 + i * 100, leader_state(2));
+    }
+    let mut now = 30_200;
+    for _ in 0..15 {
+        let w = wire(&mut b, Address::Broadcast, now, leader_state(3));
+        assert_eq!(deliver(&mut r, &w, now + 5), vec![Err(Reject::BadTag)]);
+        now += 100;
+    }
+    // Silent for the relink time: a challenge, answered with the broadcast floor.
+    let mut buf = [0u8; MAX_WIRE];
+    assert_eq!(r.due_challenge(now), Some(Address::Base));
+    let n = r.challenge(Address::Base, now, &mut buf).unwrap();
+    let Ok(Event::Challenged { from, nonce }) = deliver(&mut b, &buf[..n], now)[0] else {
+        panic!("no challenge")
+    };
+    let n = b.answer(from, nonce, now + 10, &mut buf).unwrap();
+    assert_eq!(
+        deliver(&mut r, &buf[..n], now + 20),
+        vec![Ok(Event::Synced {
+            peer: Address::Base
+        })]
+    );
+    let w = wire(&mut b, Address::Broadcast, now + 100, leader_state(4));
+    assert!(matches!(
+        deliver(&mut r, &w, now + 105)[0],
+        Ok(Event::Message { .. })
+    ));
+}
+
+/// Frames carry 12 bits (4 s) of the sender's clock, completed from the receiver's estimate
+/// of it: over a day, a base station whose crystal runs 500 ppm slower or faster than the
+/// robot's (ten times a real crystal's drift) is followed, frame after frame, with the whole
+/// clock read right every time.
+#[test]
+fn a_drifting_sender_clock_is_read_whole_for_a_day() {
+    for ppm in [-500i64, 500] {
+        let mut b = base(77);
+        let mut r = robot(1, 5);
+        robot_links_to(&mut r, &mut b, 0);
+        for i in 1..=43_200i64 {
+            let ours = (i * 2_000) as u32; // a frame every 2 s, for 24 h
+            let theirs = (i * 2_000 + i * 2_000 * ppm / 1_000_000) as u32;
+            let w = wire(&mut b, Address::Broadcast, theirs, leader_state(1));
+            match deliver(&mut r, &w, ours + 30).remove(0) {
+                Ok(Event::Message { header, .. }) => assert_eq!(header.time_ms, theirs),
+                other => panic!("{ppm} ppm, frame {i}: {other:?}"),
+            }
+        }
+    }
 }

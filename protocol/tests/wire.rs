@@ -1,7 +1,7 @@
 //! Round trips, golden vectors, garbage on the stream.
 
 use proptest::prelude::*;
-use protocol::frame::{self, Address, Header};
+use protocol::frame::{self, Address, Expect, Header, SEQ_BEHIND};
 use protocol::messages::*;
 use protocol::{FleetKey, FrameDecoder, Reject, MAX_WIRE, PROTOCOL_VERSION};
 
@@ -49,8 +49,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
         (arb_pose(), any::<i16>(), any::<i16>(), any::<u8>()).prop_map(|(pose, v, w, blend)| {
             Message::LeaderState(LeaderState {
                 pose,
-                v_mm_s: v,
-                omega_mrad_s: w,
+                twist: WireTwist::new(v, w),
                 blend,
             })
         }),
@@ -119,14 +118,22 @@ fn header(id: u8, from: Address, to: Address, seq: u32, time_ms: u32) -> Header 
     }
 }
 
-/// Feeds bytes to a decoder and opens every frame with session `s`.
-fn decode_all(bytes: &[u8], s: u32) -> Vec<Result<(Header, Message), Reject>> {
+fn expect(session: u32, seq: u32, time_ms: u32) -> Expect {
+    Expect {
+        session,
+        seq,
+        time_ms,
+    }
+}
+
+/// Feeds bytes to a decoder and opens every frame expecting `e`.
+fn decode_all(bytes: &[u8], e: Expect) -> Vec<Result<(Header, Message), Reject>> {
     let k = key();
     let mut dec = FrameDecoder::new();
     let mut out = Vec::new();
     for &b in bytes {
         if let Some(r) = dec.push(b) {
-            out.push(r.and_then(|raw| frame::open(&k, raw, |_| Ok(s))));
+            out.push(r.and_then(|raw| frame::open(&k, raw, |_| Ok(e))));
         }
     }
     out
@@ -137,19 +144,61 @@ proptest! {
     fn every_message_round_trips(
         m in arb_message(), from in arb_address(), to in arb_address(),
         seq in any::<u32>(), t in any::<u32>(), s in any::<u32>(),
+        lost in 0u32..=223, age in 0u32..3584,
     ) {
+        // The receiver expects an earlier frame (`lost` of them missed) and its estimate of
+        // the sender's clock is `age` later than the stamp: the header is still whole.
         let h = header(m.id(), from, to, seq, t);
         let mut wire = [0u8; MAX_WIRE];
         let n = frame::seal(&key(), s, &h, &m, &mut wire).unwrap();
         prop_assert_eq!(wire[n - 1], 0);
         prop_assert!(!wire[..n - 1].contains(&0));
-        let got = decode_all(&wire[..n], s);
+        let near = expect(s, seq.wrapping_sub(lost), t.wrapping_add(age));
+        let got = decode_all(&wire[..n], near);
         prop_assert_eq!(got, vec![Ok((h, m))]);
     }
 
     #[test]
+    fn a_header_completed_out_of_reach_never_verifies(
+        seq in any::<u32>(), t in any::<u32>(), lost in 224u32..1_000_000,
+        age in 3584u32..1_000_000, which in 0usize..3,
+    ) {
+        // Beyond the reach of the low bits, a receiver completes the header wrongly: the
+        // tag, over the whole values, refuses the frame. Nothing is misread.
+        let m = Message::Heartbeat(Heartbeat { status: 1 });
+        let h = header(m.id(), Address::Base, Address::Broadcast, seq, t);
+        let mut wire = [0u8; MAX_WIRE];
+        let n = frame::seal(&key(), 3, &h, &m, &mut wire).unwrap();
+        let near = match which {
+            0 => expect(3, seq.wrapping_sub(lost), t),
+            1 => expect(3, seq, t.wrapping_add(age)),
+            _ => expect(3, seq.wrapping_add(SEQ_BEHIND + 1 + lost % 200), t),
+        };
+        prop_assert_eq!(decode_all(&wire[..n], near), vec![Err(Reject::BadTag)]);
+    }
+
+    #[test]
+    fn a_leader_state_takes_at_most_26_bytes_on_the_wire(
+        x in -1_048_575i32..=1_048_575, y in -1_048_575i32..=1_048_575,
+        heading in 0u16..16384, v in any::<i16>(), w in any::<i16>(), blend in any::<u8>(),
+        seq in any::<u32>(), t in any::<u32>(),
+    ) {
+        // Within 1,048 m of the site's origin, at any point of a run's clock.
+        let m = Message::LeaderState(LeaderState {
+            pose: WirePose { x_mm: x, y_mm: y, heading },
+            twist: WireTwist::new(v, w),
+            blend,
+        });
+        let h = header(m.id(), Address::Base, Address::Broadcast, seq, t);
+        let mut wire = [0u8; MAX_WIRE];
+        let n = frame::seal(&key(), 3, &h, &m, &mut wire).unwrap();
+        let far = x.abs() >= 8192 && y.abs() >= 8192 && heading >= 128;
+        prop_assert!(n <= 26 && (n == 26 || !far), "{n} bytes");
+    }
+
+    #[test]
     fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..600)) {
-        for r in decode_all(&bytes, 1) {
+        for r in decode_all(&bytes, expect(1, 1, 1)) {
             // Random bytes must not forge a tag.
             prop_assert!(r.is_err());
         }
@@ -172,7 +221,7 @@ proptest! {
             stream.extend_from_slice(&wire[..n]);
             sent.push((h, *m));
         }
-        let got: Vec<_> = decode_all(&stream, 9).into_iter().filter_map(Result::ok).collect();
+        let got: Vec<_> = decode_all(&stream, expect(9, 0, 7)).into_iter().filter_map(Result::ok).collect();
         prop_assert_eq!(got, sent);
     }
 
@@ -187,7 +236,7 @@ proptest! {
         let mut stream = damaged;
         stream.push(0);
         stream.extend_from_slice(&wire[..n]);
-        let got = decode_all(&stream, 1);
+        let got = decode_all(&stream, expect(1, 5, 6));
         prop_assert_eq!(got.last().cloned(), Some(Ok((h, m))));
         prop_assert!(got[..got.len() - 1].iter().all(|r| r.is_err()));
     }
@@ -205,17 +254,29 @@ fn rejects_carry_reasons() {
     let raw = &raw[..len];
 
     let wrong = FleetKey::from_bytes(&[1; 32]);
-    assert_eq!(frame::open(&wrong, raw, |_| Ok(1)), Err(Reject::BadTag));
-    assert_eq!(frame::open(&k, raw, |_| Ok(2)), Err(Reject::BadTag));
     assert_eq!(
-        frame::open(&k, &raw[..5], |_| Ok(1)),
+        frame::open(&wrong, raw, |_| Ok(expect(1, 1, 1))),
+        Err(Reject::BadTag)
+    );
+    assert_eq!(
+        frame::open(&k, raw, |_| Ok(expect(2, 1, 1))),
+        Err(Reject::BadTag)
+    );
+    assert_eq!(
+        frame::open(&k, &raw[..5], |_| Ok(expect(1, 1, 1))),
         Err(Reject::Truncated)
     );
     let mut v = raw.to_vec();
-    v[0] = (2 << 5) | (v[0] & 0x1f);
-    assert_eq!(frame::open(&k, &v, |_| Ok(1)), Err(Reject::UnknownVersion));
+    v[0] = ((PROTOCOL_VERSION + 1) << 5) | (v[0] & 0x1f);
+    assert_eq!(
+        frame::open(&k, &v, |_| Ok(expect(1, 1, 1))),
+        Err(Reject::UnknownVersion)
+    );
     v[0] = (PROTOCOL_VERSION << 5) | 31;
-    assert_eq!(frame::open(&k, &v, |_| Ok(1)), Err(Reject::UnknownMessage));
+    assert_eq!(
+        frame::open(&k, &v, |_| Ok(expect(1, 1, 1))),
+        Err(Reject::UnknownMessage)
+    );
     assert_eq!(
         frame::open(&k, raw, |_| Err(Reject::UnknownSession)),
         Err(Reject::UnknownSession)
@@ -236,11 +297,13 @@ fn a_valid_tag_over_a_bad_payload_is_malformed() {
     // Sign a Heartbeat body with trailing junk using the Heartbeat schema key.
     let k = key();
     let mut body = vec![(PROTOCOL_VERSION << 5) | Heartbeat::ID];
-    body.extend_from_slice(&[0, 2, 0, 1, 0, 1]); // Base → Broadcast, seq 1, t 1
+    body.extend_from_slice(&[0x12, 0x10, 0x00]); // to broadcast, from base, seq 1, t 1
     body.extend_from_slice(&[1, 99]); // status 1 and a trailing byte
-    let tag = k.tag(&Heartbeat::SCHEMA_KEY, 5, &body);
+    let stamp = [1, 0, 0, 0, 1, 0, 0, 0]; // the whole seq and time the tag covers
+    let tag = k.tag(&Heartbeat::SCHEMA_KEY, 5, &[&stamp, &body]);
     body.extend_from_slice(&tag);
-    assert_eq!(frame::open(&k, &body, |_| Ok(5)), Err(Reject::Malformed));
+    let got = frame::open(&k, &body, |_| Ok(expect(5, 1, 1)));
+    assert_eq!(got, Err(Reject::Malformed));
 }
 
 /// One fixed frame per message kind, checked into `golden/frames.txt`. Any change of
@@ -261,8 +324,7 @@ fn golden_vectors() {
     let messages = [
         Message::LeaderState(LeaderState {
             pose,
-            v_mm_s: 400,
-            omega_mrad_s: -120,
+            twist: WireTwist::new(400, -120),
             blend: 0,
         }),
         Message::VelocityCommand(VelocityCommand {

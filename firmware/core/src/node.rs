@@ -158,8 +158,8 @@ impl RobotNode {
                 let (x, y, heading) = s.pose.to_si();
                 let snapshot = LeaderSnapshot {
                     pose: Pose::new(x, y, heading),
-                    v: units::from_milli_i16(s.v_mm_s),
-                    omega: units::from_milli_i16(s.omega_mrad_s),
+                    v: units::from_milli_i16(s.twist.v_mm_s()),
+                    omega: units::from_milli_i16(s.twist.omega_mrad_s()),
                 };
                 c.set_leader_state(snapshot, valid_at, s.blend as f32 / 255.0, sent)
             }

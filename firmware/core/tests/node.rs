@@ -70,8 +70,7 @@ fn drive(report_every: u8, periods: u32) -> (RobotNode, Link<4>, Vec<Telemetry>)
         to_robot.extend_from_slice(&buf[..n]);
         let state = Message::LeaderState(LeaderState {
             pose: WirePose::from_si(5.0, 0.0, 0.0).unwrap(),
-            v_mm_s: 0,
-            omega_mrad_s: 0,
+            twist: WireTwist::new(0, 0),
             blend: 0,
         });
         let n = base
@@ -172,8 +171,7 @@ fn a_repeated_boot_count_does_not_reopen_a_recorded_session() {
     assert!(first.link().peer(Address::Base).unwrap().is_linked());
     let state = Message::LeaderState(LeaderState {
         pose: WirePose::from_si(5.0, 0.0, 0.0).unwrap(),
-        v_mm_s: 0,
-        omega_mrad_s: 0,
+        twist: WireTwist::new(0, 0),
         blend: 0,
     });
     for t in [100, 200, 300] {

@@ -6,7 +6,10 @@
 //! With the fleet key (`--key-file` / `SWEEPER_FLEET_KEY`), handshake frames are verified
 //! and the sessions they announce are learnt, so that later frames of those senders are
 //! verified too. Without it, or before a sender's session is seen, frames are decoded but
-//! marked `"verified": false`. A simulation's recording is verified with the key `sim`
+//! marked `"verified": false`. Frames carry the low bits of their sequence number and
+//! clock: a verified frame's are completed from its sender's previous frames in the
+//! capture (its clock within 4 s of them); an unverified frame shows the low bits, with
+//! `"low_bits"` saying how many. A simulation's recording is verified with the key `sim`
 //! derives from its seed: the one its metadata holds, or `--seed N`.
 
 use std::collections::HashMap;
@@ -15,7 +18,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use protocol::frame::{self, Address, Header};
+use protocol::frame::{self, Address, Expect, Header, WireHeader, SEQ_BITS, TIME_BITS};
 use protocol::{FrameDecoder, MasterKey, Message, Reject};
 use serde_json::{json, Value};
 
@@ -53,33 +56,74 @@ fn frame_json(header: &Header, message: &Message, verified: bool) -> Value {
     })
 }
 
+/// An unverified frame: its header's values as carried (low bits unless whole).
+fn unverified_json(header: &WireHeader, message: &Message) -> Value {
+    let mut v = frame_json(&header.resolve(header.seq, header.time_ms), message, false);
+    if !header.whole {
+        v["low_bits"] = json!({ "seq": SEQ_BITS, "time_ms": TIME_BITS });
+    }
+    v
+}
+
+/// What the capture showed of its senders so far, from verified frames only.
+#[derive(Default)]
+struct Heard {
+    sessions: HashMap<Address, u32>,
+    /// The last sequence number of each (sender, destination) stream.
+    streams: HashMap<(Address, Address), u32>,
+    /// Each sender's last clock.
+    clocks: HashMap<Address, u32>,
+}
+
+impl Heard {
+    /// What a sender's next frame is completed against: its clock in the 4.096 s after its
+    /// last frame.
+    fn expect(&self, wire: &WireHeader) -> Result<Expect, Reject> {
+        let session = self.sessions.get(&wire.from);
+        let seq = self.streams.get(&(wire.from, wire.to));
+        let time = self.clocks.get(&wire.from);
+        match (session, seq, time) {
+            (Some(&session), Some(&seq), Some(&time)) => Ok(Expect {
+                session,
+                seq: seq.wrapping_add(1),
+                time_ms: time.wrapping_add(frame::TIME_BEHIND_MS),
+            }),
+            _ => Err(Reject::UnknownSession),
+        }
+    }
+
+    fn verified(&mut self, h: &Header, m: &Message) {
+        if let Message::Welcome(w) = m {
+            self.sessions.insert(h.from, w.session);
+            self.streams
+                .insert((h.from, Address::Broadcast), w.broadcast_seq);
+        }
+        self.streams.insert((h.from, h.to), h.seq);
+        self.clocks.insert(h.from, h.time_ms);
+    }
+}
+
 /// Decodes one deframed frame.
-fn decode_one(
-    raw: &[u8],
-    master: Option<&MasterKey>,
-    sessions: &mut HashMap<Address, u32>,
-) -> Value {
+fn decode_one(raw: &[u8], master: Option<&MasterKey>, heard: &mut Heard) -> Value {
     let header = match frame::peek_header(raw) {
         Ok(h) => h,
         Err(reason) => return json!({"ok": false, "reject": reason.name()}),
     };
-    let Some(master) = master else {
-        return match frame::parse_unverified(raw) {
-            Ok((h, m)) => frame_json(&h, &m, false),
-            Err(reason) => json!({"ok": false, "reject": reason.name()}),
-        };
-    };
-    let known = sessions.get(&header.from).copied();
-    let handshake = Message::is_handshake(header.id);
-    if !handshake && known.is_none() {
-        return match frame::parse_unverified(raw) {
-            Ok((h, m)) => {
-                let mut v = frame_json(&h, &m, false);
-                v["note"] = json!("sender's session not seen in this capture yet");
-                v
+    let unverified = |note: Option<&str>| match frame::parse_unverified(raw) {
+        Ok((h, m)) => {
+            let mut v = unverified_json(&h, &m);
+            if let Some(note) = note {
+                v["note"] = json!(note);
             }
-            Err(reason) => json!({"ok": false, "reject": reason.name()}),
-        };
+            v
+        }
+        Err(reason) => json!({"ok": false, "reject": reason.name()}),
+    };
+    let Some(master) = master else {
+        return unverified(None);
+    };
+    if !header.whole && !heard.sessions.contains_key(&header.from) {
+        return unverified(Some("sender's session not seen in this capture yet"));
     }
     // The key the sender used: broadcast, or the robot's own on its link with the base.
     let key = match (header.to, header.from) {
@@ -87,11 +131,9 @@ fn decode_one(
         (Address::Robot(id), _) | (_, Address::Robot(id)) => master.robot(id),
         _ => master.broadcast(),
     };
-    match frame::open(&key, raw, |_| known.ok_or(Reject::UnknownSession)) {
+    match frame::open(&key, raw, |wire| heard.expect(wire)) {
         Ok((h, m)) => {
-            if let Message::Welcome(w) = m {
-                sessions.insert(h.from, w.session);
-            }
+            heard.verified(&h, &m);
             frame_json(&h, &m, true)
         }
         Err(reason) => json!({"ok": false, "reject": reason.name(), "from": address(header.from)}),
@@ -171,7 +213,7 @@ fn decode_recording(
 struct Air {
     key: Option<MasterKey>,
     decoders: HashMap<String, FrameDecoder>,
-    sessions: HashMap<Address, u32>,
+    heard: Heard,
     count: Count,
 }
 
@@ -201,7 +243,7 @@ impl Air {
                 continue;
             };
             let mut line = match result {
-                Ok(raw) => decode_one(raw, self.key.as_ref(), &mut self.sessions),
+                Ok(raw) => decode_one(raw, self.key.as_ref(), &mut self.heard),
                 Err(reason) => json!({"ok": false, "reject": reason.name()}),
             };
             line["t_s"] = json!(log_time as f64 / 1e9);
@@ -302,7 +344,7 @@ pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
     };
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let mut decoder = FrameDecoder::new();
-    let mut sessions = HashMap::new();
+    let mut heard = Heard::default();
     let mut buf = [0u8; 4096];
     let mut offset = 0u64;
     let mut count = Count::default();
@@ -319,7 +361,7 @@ pub fn run(args: DecodeArgs) -> anyhow::Result<()> {
                 continue;
             };
             let mut line = match result {
-                Ok(raw) => decode_one(raw, key.as_ref(), &mut sessions),
+                Ok(raw) => decode_one(raw, key.as_ref(), &mut heard),
                 Err(reason) => json!({"ok": false, "reject": reason.name()}),
             };
             line["end_offset"] = json!(offset);

@@ -4,7 +4,9 @@
 
 use glam::DVec2;
 use protocol::link::Event;
-use protocol::messages::{Detour, FormationCommand, LeaderState, Message, Slot, Stop, WirePose};
+use protocol::messages::{
+    Detour, FormationCommand, LeaderState, Message, Slot, Stop, WirePose, WireTwist,
+};
 use protocol::{units, Address, Reject, MAX_WIRE};
 
 use super::fleet::LeaderEstimate;
@@ -149,8 +151,7 @@ impl BaseStation {
         {
             let state = Message::LeaderState(LeaderState {
                 pose,
-                v_mm_s: units::to_milli_i16(twist.0 as f32).unwrap_or(0),
-                omega_mrad_s: units::to_milli_i16(twist.1 as f32).unwrap_or(0),
+                twist: WireTwist::from_si(twist.0 as f32, twist.1 as f32).unwrap_or_default(),
                 blend: (blend.clamp(0.0, 1.0) * 255.0).round() as u8,
             });
             self.send(Address::Broadcast, now_ms, &state);
