@@ -236,6 +236,11 @@ fn bad_files_name_file_line_and_field() {
             "field `planner.k_a`: must be a finite number > 0",
         ),
         (
+            "fast.toml",
+            format!("{GOOD}\n[robot]\nmax_speed = 3.0\n"),
+            "field `robot.max_speed`: 3: at most 2.047 (the leader-state frame's range)",
+        ),
+        (
             "mover-kind.toml",
             format!("{GOOD}\n[[movers]]\nkind = \"dog\"\npath = [[1.0, 1.0]]\nspeed = 1.0\n"),
             "field `movers[0].kind`: unknown variant `dog`",

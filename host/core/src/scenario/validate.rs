@@ -2,6 +2,7 @@
 //! the file is listed (checks that need a part found bad are skipped, not failed again).
 
 use glam::DVec2;
+use protocol::messages::WireTwist;
 
 use super::movers::{
     CrowdSpec, MoverSpec, MAX_MOVERS, MAX_MOVER_SIZE, MAX_MOVER_SPEED, MAX_PATH_POINTS,
@@ -265,8 +266,19 @@ impl Scenario {
         p.positive("robot.track_width", r.track_width);
         p.positive("robot.wheel_radius", r.wheel_radius);
         p.positive("robot.max_wheel_speed", r.max_wheel_speed);
-        p.positive("robot.max_speed", r.max_speed);
-        p.positive("robot.max_turn_rate", r.max_turn_rate);
+        // The leader-state frame carries v and ω to ±2.047 (m/s, rad/s).
+        let wire = f64::from(WireTwist::LIMIT) / 1000.0;
+        for (field, v) in [
+            ("robot.max_speed", r.max_speed),
+            ("robot.max_turn_rate", r.max_turn_rate),
+        ] {
+            if p.positive(field, v) && v > wire {
+                p.fail(
+                    field,
+                    &format!("{v}: at most {wire} (the leader-state frame's range)"),
+                );
+            }
+        }
         p.positive("robot.max_accel", r.max_accel);
         p.positive("robot.brake_decel", r.brake_decel);
         p.positive("robot.motor_time_constant_s", r.motor_time_constant_s);
