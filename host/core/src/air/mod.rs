@@ -24,8 +24,9 @@ pub const UPLINK_FRAMES: usize = 2;
 /// The downlink's frames per period: leader state, the leader's command, one more; and
 /// one per ten followers (each has its slots sent once a second).
 pub const DOWNLINK_FRAMES: usize = 3;
-/// The largest downlink frame (a leader state is at most 31 B).
-pub const DOWNLINK_FRAME_BYTES: usize = 32;
+/// A downlink frame as the schedule plans it: a leader state (26 B within 1 km of the
+/// site's origin); the others average no more, and the downlink takes what is left.
+pub const DOWNLINK_FRAME_BYTES: usize = 26;
 
 /// Followers report at most this seldom: 5 s between reports.
 const MAX_REPORT_EVERY: u64 = 50;
