@@ -116,16 +116,7 @@ impl AirObserver {
             Some((stamp, at)) => stamp.wrapping_add(((heard_s - at) * 1000.0) as u32),
             None => (heard_s * 1000.0) as u32,
         };
-        let whole = if header.whole {
-            header.time_ms
-        } else {
-            frame::complete(
-                header.time_ms,
-                frame::TIME_BITS,
-                near,
-                frame::TIME_BEHIND_MS,
-            )
-        };
+        let whole = header.time_near(near);
         self.last_stamp = Some((whole, heard_s));
         whole
     }

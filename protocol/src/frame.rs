@@ -99,16 +99,37 @@ pub fn complete(low: u32, bits: u32, near: u32, behind: u32) -> u32 {
 }
 
 impl WireHeader {
-    /// The whole header: as carried when whole, else completed near what is expected.
+    /// The whole header: as carried when whole, else completed near what is expected (the
+    /// stream's next number, the sender's clock now).
     pub fn resolve(&self, seq: u32, time_ms: u32) -> Header {
-        let (seq, time_ms) = if self.whole {
-            (self.seq, self.time_ms)
+        self.with(self.seq_near(seq), self.time_near(time_ms))
+    }
+
+    /// The header with `seq` and `time_ms` as carried (low bits unless whole): for showing
+    /// an unverified frame, never for acting on it.
+    pub fn carried(&self) -> Header {
+        self.with(self.seq, self.time_ms)
+    }
+
+    /// The whole sequence number, completed near the stream's next one unless carried whole.
+    pub fn seq_near(&self, next: u32) -> u32 {
+        if self.whole {
+            self.seq
         } else {
-            (
-                complete(self.seq, SEQ_BITS, seq, SEQ_BEHIND),
-                complete(self.time_ms, TIME_BITS, time_ms, TIME_BEHIND_MS),
-            )
-        };
+            complete(self.seq, SEQ_BITS, next, SEQ_BEHIND)
+        }
+    }
+
+    /// The sender's whole clock, completed near an estimate of it unless carried whole.
+    pub fn time_near(&self, estimate_ms: u32) -> u32 {
+        if self.whole {
+            self.time_ms
+        } else {
+            complete(self.time_ms, TIME_BITS, estimate_ms, TIME_BEHIND_MS)
+        }
+    }
+
+    fn with(&self, seq: u32, time_ms: u32) -> Header {
         Header {
             version: self.version,
             id: self.id,
@@ -320,7 +341,7 @@ pub fn open(
     let body = &raw[..raw.len() - TAG_LEN];
     let tag = &raw[raw.len() - TAG_LEN..];
     let (session, header) = if wire.whole {
-        (0, wire.resolve(0, 0))
+        (0, wire.carried())
     } else {
         let e = expect(&wire)?;
         (e.session, wire.resolve(e.seq, e.time_ms))

@@ -58,7 +58,7 @@ fn frame_json(header: &Header, message: &Message, verified: bool) -> Value {
 
 /// An unverified frame: its header's values as carried (low bits unless whole).
 fn unverified_json(header: &WireHeader, message: &Message) -> Value {
-    let mut v = frame_json(&header.resolve(header.seq, header.time_ms), message, false);
+    let mut v = frame_json(&header.carried(), message, false);
     if !header.whole {
         v["low_bits"] = json!({ "seq": SEQ_BITS, "time_ms": TIME_BITS });
     }
