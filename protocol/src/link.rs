@@ -29,6 +29,9 @@ use heapless::{Deque, Vec};
 const OUTSTANDING: usize = 4;
 /// A challenge older than this is not accepted any more, ms.
 const CHALLENGE_LIFETIME_MS: u32 = 3000;
+/// Unanswered challenges double the wait for the next this many times at most: 16×,
+/// 4.8 s by default, under a fifth of the slowest shared channel's slots.
+const MAX_BACKOFF: u8 = 4;
 
 use crate::auth::FleetKey;
 use crate::frame::{self, Address, EncodeError, Expect, Header, WireHeader};
@@ -129,6 +132,8 @@ pub struct Peer {
     /// earlier one after a newer one went out.
     challenges: Deque<(u64, u32), OUTSTANDING>,
     last_hello_ms: Option<u32>,
+    /// Challenges sent since the last answer: each doubles the wait for the next.
+    unanswered: u8,
     /// The newest `Hello` nonce seen from the peer: older or equal ones are replays.
     newest_hello: Option<u64>,
     /// Our clock when the last frame from this peer was accepted.
@@ -173,6 +178,7 @@ impl Peer {
             return Err(Reject::Stale);
         }
         self.challenges.clear();
+        self.unanswered = 0;
         // Within the same session a floor never goes back: a Welcome held back and
         // delivered late must not reopen the frames accepted since it was sent.
         let same = self.session == Some(welcome.session);
@@ -214,6 +220,7 @@ impl Peer {
             rx_broadcast: Stream::default(),
             challenges: Deque::new(),
             last_hello_ms: None,
+            unanswered: 0,
             newest_hello: None,
             last_rx_ms: None,
             clock_offset_ms: None,
@@ -241,6 +248,11 @@ impl Peer {
             }),
             _ => Err(Reject::UnknownSession),
         }
+    }
+
+    /// Our challenges to it since its last answer.
+    pub fn unanswered(&self) -> u8 {
+        self.unanswered
     }
 
     /// True once a handshake has given us the peer's session.
@@ -407,6 +419,7 @@ impl<const PEERS: usize> Link<PEERS> {
         }
         let _ = pending.push_back((nonce, now_ms));
         self.peers[i].last_hello_ms = Some(now_ms);
+        self.peers[i].unanswered = self.peers[i].unanswered.saturating_add(1);
         self.send(to, now_ms, &Message::Hello(Hello { nonce }), out)
     }
 
@@ -423,15 +436,10 @@ impl<const PEERS: usize> Link<PEERS> {
                 let resync = t
                     .resync_every_ms
                     .is_some_and(|r| since_hello(p).is_none_or(|s| s >= r));
-                // Each challenge still unanswered doubles the wait for the next (up to
-                // 8×): on a slow shared channel new ones would queue up behind the old,
-                // and a late answer to an old one is refused.
-                let pending = p
-                    .challenges
-                    .iter()
-                    .filter(|(_, sent)| now_ms.wrapping_sub(*sent) <= CHALLENGE_LIFETIME_MS)
-                    .count() as u32;
-                let wait = t.challenge_every_ms << pending.saturating_sub(1).min(3);
+                // Each challenge unanswered since the last answer doubles the wait for
+                // the next (up to 16×): on a slow shared channel new ones would queue up
+                // behind the old in the modem, and a late answer to an old one is refused.
+                let wait = t.challenge_every_ms << p.unanswered.saturating_sub(1).min(MAX_BACKOFF);
                 let quiet = since_hello(p).is_none_or(|s| s >= wait);
                 (stale || resync) && quiet
             })
@@ -504,9 +512,15 @@ impl<const PEERS: usize> Link<PEERS> {
                 if peer.newest_hello.is_some_and(|n| hello.nonce <= n) {
                     return Err(Reject::Replay);
                 }
-                peer.newest_hello = Some(hello.nonce);
                 // A peer that lost our session may have restarted: make sure we have its
-                // current one too.
+                // current one too. A new epoch (the high half: a robot's boot count, the
+                // station's start) says so; else only its silence does, so a peer
+                // challenging over a slow channel does not double its own load.
+                let epoch = |n: u64| n >> 32;
+                let restarted = peer
+                    .newest_hello
+                    .is_none_or(|n| epoch(n) != epoch(hello.nonce));
+                peer.newest_hello = Some(hello.nonce);
                 if peer.silent_for(now_ms, timing.challenge_every_ms) {
                     peer.last_rx_ms = None;
                 }

@@ -650,3 +650,28 @@ fn a_drifting_sender_clock_is_read_whole_for_a_day() {
         }
     }
 }
+
+/// Challenges nobody answers come at 300 ms, then twice as far apart each time up to
+/// 4.8 s; an answer starts the count again.
+#[test]
+fn unanswered_challenges_back_off_to_sixteen_times_and_an_answer_resets_them() {
+    let mut r = robot(1, 5);
+    let mut buf = [0u8; MAX_WIRE];
+    let mut sent = Vec::new();
+    for t in (0..20_000).step_by(10) {
+        if r.due_challenge(t).is_some() {
+            r.challenge(Address::Base, t, &mut buf).unwrap();
+            sent.push(t);
+        }
+    }
+    let gaps: Vec<u32> = sent.windows(2).map(|w| w[1] - w[0]).collect();
+    assert_eq!(gaps[..6], [300, 600, 1200, 2400, 4800, 4800], "{sent:?}");
+    assert_eq!(
+        r.peer(Address::Base).unwrap().unanswered(),
+        sent.len() as u8
+    );
+    let mut b = base(77);
+    let t = sent.last().unwrap() + 5000;
+    robot_links_to(&mut r, &mut b, t);
+    assert_eq!(r.peer(Address::Base).unwrap().unanswered(), 0);
+}

@@ -95,3 +95,39 @@ fn unscheduled_access_collides_and_falls_over_first() {
     assert!(channel(aloha).collisions > channel(csma).collisions);
     assert!(worst_age_p99(aloha) > worst_age_p99(sched));
 }
+
+/// Sixteen robots on one 64 kbps modem (issue 55's fleet): each follower's slot comes every
+/// 8 periods, yet every robot links, the fleet sets off and reaches its goal, with no
+/// collision and the leader's state fresh at every follower. (The 15-follower V's rear is
+/// not held through a shape change on every lot: docs/sim.md, "A shared channel".)
+#[test]
+fn sixteen_robots_link_and_arrive_on_a_64_kbps_modem() {
+    for seed in [1, 2] {
+        let g = generate::open_lot(seed, 15);
+        let s = Scenario::parse(&g.toml, &g.name).expect("a generated lot parses");
+        let (r, _) = run(on_air(s, "sik-64k", "scheduled"), seed);
+        let mut linked: Vec<u16> = r.events_named("linked").filter_map(|e| e.robot).collect();
+        linked.sort_unstable();
+        linked.dedup();
+        let last = r.events_named("linked").map(|e| e.at_s).fold(0.0, f64::max);
+        eprintln!(
+            "seed {seed}: {} linked, the last at {last:.1} s; goal {} at {:?} s; age p99 {:.0} ms",
+            linked.len(),
+            r.goal_reached,
+            r.time_to_goal_s,
+            worst_age_p99(&r)
+        );
+        assert_eq!(linked.len(), 16, "seed {seed}: {linked:?}");
+        assert!(
+            last <= 30.0,
+            "seed {seed}: the last robot linked at {last} s"
+        );
+        assert!(
+            r.goal_reached && r.collisions == 0,
+            "seed {seed}: {}",
+            r.why
+        );
+        assert_eq!(channel(&r).collisions, 0);
+        assert!(worst_age_p99(&r) <= 150.0, "{}", worst_age_p99(&r));
+    }
+}

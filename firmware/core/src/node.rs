@@ -30,13 +30,18 @@ pub struct Identity {
 
 /// How often a robot re-measures the base station's clock offset.
 const RESYNC_EVERY_MS: u32 = 10_000;
+/// A handshake slower than this went over a slow shared channel, ms.
+const SLOW_RTT_MS: u32 = 300;
+/// A follower's reports until told, after a slow handshake: once a second, periods.
+const UNTOLD_REPORT_EVERY: u8 = 10;
 
 pub struct RobotNode {
     identity: Identity,
     link: Link<1>,
     decoder: FrameDecoder,
     controller: Controller,
-    /// Telemetry every this many periods (the station's `report_every`), and the periods
+    /// Telemetry every this many periods (the station's `report_every`; 0: not told yet,
+    /// see [`RobotNode::report_every`]), and the periods
     /// since the last report.
     report_every: u8,
     unreported: u8,
@@ -72,7 +77,7 @@ impl RobotNode {
             link,
             decoder: FrameDecoder::new(),
             controller: Controller::new(config, identity.role),
-            report_every: 1,
+            report_every: 0,
             unreported: 0,
         }
     }
@@ -223,7 +228,10 @@ impl RobotNode {
         }
         let out = self.controller.step(now_ms, sensors);
         self.unreported = self.unreported.saturating_add(1);
-        if self.unreported >= self.report_every {
+        if self
+            .report_every()
+            .is_some_and(|every| self.unreported >= every)
+        {
             self.unreported = 0;
             let telemetry = Message::Telemetry(self.telemetry());
             if let Ok(n) = self.link.send(Address::Base, now_ms, &telemetry, &mut buf) {
@@ -231,6 +239,25 @@ impl RobotNode {
             }
         }
         out
+    }
+
+    /// Periods between reports, `None` while it holds them. A follower unlinked with a
+    /// third challenge out unanswered sends its handshake alone: on a slow shared channel
+    /// a report queued ahead of its `Hello` in the modem would stretch the round trip past
+    /// the limit (one lost handshake, as on a link of its own, changes nothing).
+    /// Until the station says how often, every period (the leader always), or once a
+    /// second after a slow handshake: the slowest shared channels' slots carry no more.
+    fn report_every(&self) -> Option<u8> {
+        let base = self.link.peer(Address::Base)?;
+        let follower = self.identity.role == Role::Follower;
+        match (base.is_linked(), self.report_every) {
+            (false, _) if follower && base.unanswered() > 2 => None,
+            (_, 0) if follower && base.rtt_ms.is_some_and(|r| r > SLOW_RTT_MS) => {
+                Some(UNTOLD_REPORT_EVERY)
+            }
+            (_, 0) => Some(1),
+            (_, every) => Some(every),
+        }
     }
 
     pub fn telemetry(&self) -> Telemetry {

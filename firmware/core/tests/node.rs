@@ -328,3 +328,82 @@ fn a_follower_reports_as_often_as_it_is_told() {
         every.len()
     );
 }
+
+/// Over a slow shared channel (its frames reach the base station 600 ms after it sends
+/// them, as a modem waiting for its slot holds them; the first second's are lost), a
+/// follower holds its reports from its third unanswered challenge until it links; linked
+/// after so slow a handshake and not yet told how often, it reports once a second.
+#[test]
+fn over_a_slow_channel_reports_wait_for_the_link_then_come_once_a_second() {
+    let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
+    base.add_peer(Address::Robot(1), robot_key());
+    let id = Identity {
+        id: 1,
+        role: Role::Follower,
+        boot_count: 3,
+        entropy: 0x1234_5678,
+    };
+    let mut node = RobotNode::new(id, key(), robot_key(), RobotConfig::DEFAULT);
+    let mut dec = FrameDecoder::new();
+    let mut held: Vec<(u32, Vec<u8>)> = Vec::new();
+    let mut to_robot: Vec<u8> = Vec::new();
+    let mut buf = [0u8; MAX_WIRE];
+    let mut reports = Vec::new();
+    let mut linked_at = None;
+    for i in 0..90 {
+        let now = i * 100;
+        let (due, later): (Vec<_>, Vec<_>) = held.into_iter().partition(|(t, _)| *t <= now);
+        held = later;
+        for b in due.into_iter().flat_map(|(_, bytes)| bytes) {
+            let Some(frame) = dec.push(b) else { continue };
+            match base.receive(frame, now) {
+                Ok(Event::Challenged { from, nonce }) => {
+                    let n = base.answer(from, nonce, now, &mut buf).unwrap();
+                    to_robot.extend_from_slice(&buf[..n]);
+                }
+                Ok(Event::Message {
+                    header,
+                    message: Message::Telemetry(_),
+                }) => reports.push(header.time_ms),
+                _ => {}
+            }
+        }
+        if let Some(peer) = base.due_challenge(now) {
+            let n = base.challenge(peer, now, &mut buf).unwrap();
+            to_robot.extend_from_slice(&buf[..n]);
+        }
+        let bytes = std::mem::take(&mut to_robot);
+        let mut sent = Vec::new();
+        node.receive(&bytes, now, &mut |b| sent.extend_from_slice(b));
+        let sensors = Sensors {
+            ticks: [0, 0],
+            pose_fix: None,
+            proximity: [None, None],
+        };
+        node.tick(now, &sensors, &mut |b| sent.extend_from_slice(b));
+        if now >= 1000 {
+            held.push((now + 600, sent));
+        }
+        let linked = node.link().peer(Address::Base).unwrap().is_linked();
+        if linked && linked_at.is_none() {
+            linked_at = Some(now);
+        }
+    }
+    let linked_at = linked_at.expect("the robot links over the slow channel");
+    let rtt = node.link().peer(Address::Base).unwrap().rtt_ms.unwrap();
+    assert!(rtt > 300, "{rtt}");
+    assert!(
+        reports.iter().all(|t| !(900..linked_at).contains(t)),
+        "a report sent while it waited for the link: {reports:?}, linked at {linked_at}"
+    );
+    let after: Vec<u32> = reports
+        .iter()
+        .copied()
+        .filter(|t| *t >= linked_at)
+        .collect();
+    let gaps: Vec<u32> = after.windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(
+        gaps.len() >= 3 && gaps.iter().all(|g| *g == 1000),
+        "{after:?}"
+    );
+}

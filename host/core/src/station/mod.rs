@@ -240,6 +240,8 @@ pub struct BaseStation {
     world: Map,
     outbox: Vec<u8>,
     last_slots_ms: Option<u32>,
+    /// The follower whose slots the round on a shared channel refreshed last.
+    slots_turn: usize,
     /// Robots whose slots go out at the next step (they just linked: what we sent them
     /// before, they refused).
     slots_due: Vec<u16>,
@@ -286,6 +288,9 @@ impl BaseStation {
                 // A robot reporting seldom is not silent: it is on a shared channel.
                 relink_after_ms: Timing::default().relink_after_ms
                     + 2 * u32::from(cfg.report_every.max(1) - 1) * cfg.period_ms,
+                // A robot's answer may wait for its slot up to a report interval.
+                max_rtt_ms: Timing::default().max_rtt_ms
+                    + u32::from(cfg.report_every.max(1) - 1) * cfg.period_ms,
                 ..Timing::default()
             },
         ));
@@ -317,6 +322,7 @@ impl BaseStation {
             gate: Gate::Waiting,
             outbox: Vec::new(),
             last_slots_ms: None,
+            slots_turn: 0,
             slots_due: Vec::new(),
             events: Vec::new(),
             fix_watch: None,
@@ -566,22 +572,39 @@ impl BaseStation {
     /// fixes due, forgotten scan marks, the localization watch.
     fn upkeep(&mut self, now_ms: u32) {
         self.challenge_due(now_ms);
-        let due_slots = self
-            .last_slots_ms
-            .is_none_or(|t| now_ms.wrapping_sub(t) >= 1000);
-        if due_slots {
-            self.send_slots(now_ms, None);
-            self.last_slots_ms = Some(now_ms);
-            self.slots_due.clear();
-        } else if !self.slots_due.is_empty() {
-            let due = std::mem::take(&mut self.slots_due);
-            self.send_slots(now_ms, Some(&due));
-        }
+        self.slots_upkeep(now_ms);
         self.send_due_fixes(now_ms);
         let forgotten = self.perception.age(now_ms);
         self.apply_sensed(forgotten);
         self.tracker.age(now_ms);
         self.check_fixes(now_ms);
+    }
+
+    /// Slots to the robots that just linked, and again to every follower each second (a
+    /// slot lost is mended); on a shared channel the refresh goes round, one follower every
+    /// second period: all at once they would fill the downlink behind the leader state.
+    fn slots_upkeep(&mut self, now_ms: u32) {
+        let mut due = std::mem::take(&mut self.slots_due);
+        match self.last_slots_ms {
+            Some(_) if self.cfg.shared_channel => {
+                let n = 2 * self.fleet.followers.len().max(1);
+                self.slots_turn = (self.slots_turn + 1) % n;
+                if let Some(&id) = self.fleet.followers.get(self.slots_turn / 2) {
+                    if !due.contains(&id) {
+                        due.push(id);
+                    }
+                }
+            }
+            Some(t) if now_ms.wrapping_sub(t) < 1000 => {}
+            _ => {
+                self.send_slots(now_ms, None);
+                self.last_slots_ms = Some(now_ms);
+                return;
+            }
+        }
+        if !due.is_empty() {
+            self.send_slots(now_ms, Some(&due));
+        }
     }
 
     /// The gate: the operator's hold, a fault, the localization watch, the leader's

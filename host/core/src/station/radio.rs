@@ -57,6 +57,7 @@ impl BaseStation {
                         } else {
                             at
                         };
+                        self.check_told(id, pose_at);
                         let heard = self.fleet.hear(id, t, pose_at, now_ms);
                         self.events.extend(heard.events);
                         if heard.halts {
@@ -69,8 +70,10 @@ impl BaseStation {
                     if let Ok(n) = self.link.answer(from, nonce, now_ms, &mut buf) {
                         self.outbox.extend_from_slice(&buf[..n]);
                         // The robot verifies our frames from this answer on: its slots go
-                        // out at the next step (sent before, they were refused).
-                        if let Address::Robot(id) = from {
+                        // out at the next step (sent before, they were refused). On a
+                        // shared channel the round of refreshes brings them: a robot
+                        // challenging again and again would fill the downlink.
+                        if let (Address::Robot(id), false) = (from, self.cfg.shared_channel) {
                             self.slots_due_for(id);
                         }
                     }
@@ -91,13 +94,34 @@ impl BaseStation {
         }
     }
 
+    /// On a shared channel a follower's slots go round slowly: one whose reports come
+    /// closer together than half the interval it was told (by its own stamps: a modem
+    /// holding them evens out their arrival) has not had its `FormationCommand` since it
+    /// linked, and gets its slots at the next step.
+    fn check_told(&mut self, id: u16, pose_at_ms: u32) {
+        let told_ms = u32::from(self.cfg.report_every) * self.cfg.period_ms;
+        let too_often = self
+            .fleet
+            .get(id)
+            .filter(|s| s.telemetry.is_some())
+            .is_some_and(|s| pose_at_ms.wrapping_sub(s.pose_at_ms) < told_ms / 2);
+        if self.cfg.shared_channel && too_often && self.fleet.followers.contains(&id) {
+            self.slots_due_for(id);
+        }
+    }
+
     /// Challenges to the robots whose link needs one.
+    /// On a shared channel one a period: a fleet challenged at once would fill the
+    /// downlink for seconds, and the answers to robots' own challenges wait behind.
     pub(super) fn challenge_due(&mut self, now_ms: u32) {
         let mut buf = [0u8; MAX_WIRE];
         while let Some(peer) = self.link.due_challenge(now_ms) {
             match self.link.challenge(peer, now_ms, &mut buf) {
                 Ok(n) => self.outbox.extend_from_slice(&buf[..n]),
                 Err(_) => break,
+            }
+            if self.cfg.shared_channel {
+                break;
             }
         }
     }
