@@ -512,15 +512,9 @@ impl<const PEERS: usize> Link<PEERS> {
                 if peer.newest_hello.is_some_and(|n| hello.nonce <= n) {
                     return Err(Reject::Replay);
                 }
-                // A peer that lost our session may have restarted: make sure we have its
-                // current one too. A new epoch (the high half: a robot's boot count, the
-                // station's start) says so; else only its silence does, so a peer
-                // challenging over a slow channel does not double its own load.
-                let epoch = |n: u64| n >> 32;
-                let restarted = peer
-                    .newest_hello
-                    .is_none_or(|n| epoch(n) != epoch(hello.nonce));
                 peer.newest_hello = Some(hello.nonce);
+                // A peer that lost our session may have restarted: make sure we have its
+                // current one too.
                 if peer.silent_for(now_ms, timing.challenge_every_ms) {
                     peer.last_rx_ms = None;
                 }
