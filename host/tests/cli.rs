@@ -719,3 +719,24 @@ fn help_links_and_readme_agree_with_the_program() {
     }
     assert!(checked >= 5, "{checked} links checked");
 }
+
+/// Rows wider than eight abreast are refused, naming the field.
+#[test]
+fn check_refuses_rows_too_wide() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/paper-obstacles.toml"
+    ))
+    .unwrap();
+    let wide = text.replacen("shape = \"triangle\"", "shape = \"rows\"\nper_row = 9", 1);
+    assert_ne!(wide, text, "the shipped file's shape");
+    let (code, err) = check_text("wide.toml", &wide);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("field `formation.per_row`: must be 1 to 8 followers abreast"),
+        "{err}"
+    );
+    let ok = text.replacen("shape = \"triangle\"", "shape = \"rows\"\nper_row = 2", 1);
+    let (code, err) = check_text("rows.toml", &ok);
+    assert_eq!(code, 0, "{err}");
+}

@@ -44,6 +44,10 @@ use crate::geometry::PlanPose;
 pub enum WideShape {
     /// Followers alternately left and right, at ±angle, rank by rank (triangle for two).
     V { distance: f64, angle: f64 },
+    /// Rows of `per_row` abreast behind the leader, centred on its path, `spacing` apart
+    /// across and between rows (the last row holds what is left): a large fleet's rear
+    /// stays close behind, where a V's spreads out.
+    Rows { per_row: usize, spacing: f64 },
     /// Explicit (L, φ) per follower.
     Custom(Vec<(f64, f64)>),
 }
@@ -150,6 +154,18 @@ impl FormationSpec {
                     (rank * distance, side * angle)
                 })
                 .collect(),
+            WideShape::Rows { per_row, spacing } => {
+                let per_row = (*per_row).max(1);
+                (0..self.followers)
+                    .map(|k| {
+                        let row = k / per_row;
+                        let abreast = per_row.min(self.followers - row * per_row);
+                        let across = ((k % per_row) as f64 - 0.5 * (abreast - 1) as f64) * spacing;
+                        let back = -((row + 1) as f64) * spacing;
+                        (back.hypot(across), across.atan2(back))
+                    })
+                    .collect()
+            }
             WideShape::Custom(slots) => slots.clone(),
         }
     }

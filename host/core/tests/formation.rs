@@ -347,3 +347,43 @@ fn a_shape_change_keeps_every_slot_point_under_the_top_speed() {
     assert!(changes[0].end_s.is_some(), "{changes:?}");
     assert!(fastest <= s.top_speed + 0.02, "{fastest}");
 }
+
+/// Rows of three behind the leader: seven followers in rows of 3, 3 and 1, each row
+/// centred on the leader's path, `line_spacing` apart across and between rows; the width
+/// is the widest row's.
+#[test]
+fn rows_sit_centred_behind_the_leader_row_by_row() {
+    let s = FormationSpec {
+        wide: WideShape::Rows {
+            per_row: 3,
+            spacing: 1.5,
+        },
+        followers: 7,
+        ..spec()
+    };
+    let points: Vec<DVec2> = s
+        .wide_slots()
+        .into_iter()
+        .map(|(l, phi)| DVec2::new(l * phi.cos(), l * phi.sin()))
+        .collect();
+    let want = [
+        (-1.5, -1.5),
+        (-1.5, 0.0),
+        (-1.5, 1.5),
+        (-3.0, -1.5),
+        (-3.0, 0.0),
+        (-3.0, 1.5),
+        (-4.5, 0.0),
+    ];
+    for (p, (x, y)) in points.iter().zip(want) {
+        assert!(
+            p.distance(DVec2::new(x, y)) < 1e-9,
+            "{p} against ({x}, {y})"
+        );
+    }
+    assert!((s.wide_width() - (3.0 + 2.0 * 0.3)).abs() < 1e-9);
+    // An even last row is centred too: followers 7 and 8 of 8 at ±0.75 m.
+    let s = FormationSpec { followers: 8, ..s };
+    let (l, phi) = s.wide_slots()[7];
+    assert!((l * phi.sin() - 0.75).abs() < 1e-9 && (l * phi.cos() + 4.5).abs() < 1e-9);
+}

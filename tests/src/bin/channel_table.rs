@@ -7,8 +7,10 @@
 //!
 //! ```text
 //! cargo run --release -p e2e --bin channel_table -- --seeds 2
+//! cargo run --release -p e2e --bin channel_table -- --seeds 2 --rows 3 --followers 2,4,7,9,15,31
 //! ```
 //!
+//! `--rows N` gives the generated lots a formation in rows of N abreast instead of a V.
 //! Runs `BIN sim WORLD --seed N --report …` (worlds in `OUT/worlds/`, reports in
 //! `OUT/reports/`; a report already there is kept, so an interrupted run resumes).
 
@@ -48,6 +50,9 @@ struct Args {
     jobs: usize,
     #[arg(long, default_value = "target/channel-table")]
     out: PathBuf,
+    /// The formation in rows of this many abreast instead of the generated V.
+    #[arg(long)]
+    rows: Option<usize>,
 }
 
 /// The issue's bounds: leader-state age p99 and each follower's error after joining.
@@ -141,16 +146,25 @@ fn list(s: &str) -> Vec<String> {
 
 /// Writes the world, runs it (unless its report is there) and reads the figures.
 fn run(args: &Args, job: &Job) -> Result<Figures, String> {
-    let name = job.name();
+    let name = match args.rows {
+        Some(n) => format!("{}-rows{n}", job.name()),
+        None => job.name(),
+    };
     let world = args.out.join("worlds").join(format!("{name}.toml"));
     let report = args.out.join("reports").join(format!("{name}.json"));
     if !report.exists() {
         let g = e2e::generate::open_lot(job.seed, job.followers);
+        let mut toml = g.toml.replacen(&g.name, &name, 1);
+        if let Some(n) = args.rows {
+            let shape = ["shape = \"v\"", "shape = \"triangle\""]
+                .into_iter()
+                .find(|s| toml.contains(s))
+                .ok_or_else(|| format!("{name}: the generated lot names no V or triangle"))?;
+            toml = toml.replacen(shape, &format!("shape = \"rows\"\nper_row = {n}"), 1);
+        }
         let text = format!(
             "{}\n[link]\nradio = \"{}\"\naccess = \"{}\"\n",
-            g.toml.replacen(&g.name, &name, 1),
-            job.preset,
-            job.access
+            toml, job.preset, job.access
         );
         std::fs::write(&world, text).map_err(|e| format!("{}: {e}", world.display()))?;
         let scratch = args.out.join("scratch");

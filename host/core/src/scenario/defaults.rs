@@ -6,6 +6,9 @@ pub fn distance() -> f64 {
 pub fn angle_deg() -> f64 {
     150.0
 }
+pub fn per_row() -> usize {
+    3
+}
 pub fn line_spacing() -> f64 {
     1.5
 }

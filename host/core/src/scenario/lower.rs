@@ -82,6 +82,10 @@ impl Scenario {
                 distance: f.distance,
                 angle: f.angle_deg.to_radians(),
             },
+            ShapeName::Rows => WideShape::Rows {
+                per_row: f.per_row,
+                spacing: f.line_spacing,
+            },
             ShapeName::Custom => WideShape::Custom(
                 f.slots
                     .iter()

@@ -492,6 +492,8 @@ pub struct StartPose {
 pub enum ShapeName {
     Triangle,
     V,
+    /// Rows of `per_row` abreast behind the leader, `line_spacing` apart both ways.
+    Rows,
     Custom,
 }
 
@@ -515,6 +517,9 @@ pub struct FormationToml {
     /// Custom slots, one per follower in id order.
     #[serde(default)]
     pub slots: Vec<SlotSpec>,
+    /// Followers abreast in each row of the `rows` shape.
+    #[serde(default = "defaults::per_row")]
+    pub per_row: usize,
     /// Line spacing D, m.
     #[serde(default = "defaults::line_spacing")]
     pub line_spacing: f64,
@@ -864,6 +869,7 @@ impl Scenario {
         match self.formation.shape {
             ShapeName::Triangle => "triangle",
             ShapeName::V => "v",
+            ShapeName::Rows => "rows",
             ShapeName::Custom => "custom",
         }
     }

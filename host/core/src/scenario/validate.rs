@@ -35,6 +35,8 @@ pub const MAX_COVERAGE_CELLS: f64 = 4e6;
 pub const MAX_COVER: f64 = 1000.0;
 /// Problems listed at most; the rest are counted.
 const MAX_PROBLEMS: usize = 100;
+/// The most followers abreast in a row: wider, a shape is a line sideways.
+const MAX_PER_ROW: usize = 8;
 
 /// The problems found so far, as `(field, message)`.
 #[derive(Default)]
@@ -393,6 +395,12 @@ impl Scenario {
         p.positive("formation.transition_s", f.transition_s);
         p.finite("formation.min_dwell_s", &[f.min_dwell_s]);
         p.positive("formation.lookahead", f.lookahead);
+        if f.shape == ShapeName::Rows && !(1..=MAX_PER_ROW).contains(&f.per_row) {
+            p.fail(
+                "formation.per_row",
+                &format!("must be 1 to {MAX_PER_ROW} followers abreast"),
+            );
+        }
         if f.shape == ShapeName::Custom {
             if robots_ok && f.slots.len() != self.followers().len() {
                 p.fail(
@@ -420,6 +428,7 @@ impl Scenario {
         let spec = self.formation_spec();
         let field = |k: usize| match self.formation.shape {
             ShapeName::Custom => format!("formation.slots[{k}]"),
+            ShapeName::Rows => "formation.line_spacing".to_string(),
             _ => "formation.distance".to_string(),
         };
         let at = |(l, a): (f64, f64)| DVec2::new(l * a.cos(), l * a.sin());
