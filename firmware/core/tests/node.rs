@@ -19,9 +19,8 @@ fn robot_key() -> FleetKey {
     FleetKey::from_bytes(&[5; 32])
 }
 
-/// Robot 1, a follower, and a base station for `periods` control periods: handshakes,
-/// slots (with `report_every`) and the leader's state each period. The telemetry heard.
-fn drive(report_every: u8, periods: u32) -> (RobotNode, Link<4>, Vec<Telemetry>) {
+/// A base station knowing robot 1, and robot 1, a follower, freshly booted.
+fn base_and_follower() -> (Link<4>, RobotNode) {
     let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
     base.add_peer(Address::Robot(1), robot_key());
     let id = Identity {
@@ -30,7 +29,14 @@ fn drive(report_every: u8, periods: u32) -> (RobotNode, Link<4>, Vec<Telemetry>)
         boot_count: 3,
         entropy: 0x1234_5678,
     };
-    let mut node = RobotNode::new(id, key(), robot_key(), RobotConfig::DEFAULT);
+    let node = RobotNode::new(id, key(), robot_key(), RobotConfig::DEFAULT);
+    (base, node)
+}
+
+/// Robot 1, a follower, and a base station for `periods` control periods: handshakes,
+/// slots (with `report_every`) and the leader's state each period. The telemetry heard.
+fn drive(report_every: u8, periods: u32) -> (RobotNode, Link<4>, Vec<Telemetry>) {
+    let (mut base, mut node) = base_and_follower();
     let mut base_dec = FrameDecoder::new();
     let mut to_base: Vec<u8> = Vec::new();
     let mut to_robot: Vec<u8> = Vec::new();
@@ -335,15 +341,7 @@ fn a_follower_reports_as_often_as_it_is_told() {
 /// after so slow a handshake and not yet told how often, it reports once a second.
 #[test]
 fn over_a_slow_channel_reports_wait_for_the_link_then_come_once_a_second() {
-    let mut base: Link<4> = Link::new(Address::Base, key(), 99, 1 << 50, Timing::default());
-    base.add_peer(Address::Robot(1), robot_key());
-    let id = Identity {
-        id: 1,
-        role: Role::Follower,
-        boot_count: 3,
-        entropy: 0x1234_5678,
-    };
-    let mut node = RobotNode::new(id, key(), robot_key(), RobotConfig::DEFAULT);
+    let (mut base, mut node) = base_and_follower();
     let mut dec = FrameDecoder::new();
     let mut held: Vec<(u32, Vec<u8>)> = Vec::new();
     let mut to_robot: Vec<u8> = Vec::new();
