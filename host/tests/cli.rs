@@ -171,11 +171,7 @@ fn check_prints_the_channel_and_refuses_a_bad_radio() {
 /// A shape the robots cannot hold (a slot on the leader) is refused, with its line.
 #[test]
 fn check_refuses_a_shape_whose_robots_would_touch() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../scenarios/paper-obstacles.toml"
-    ))
-    .unwrap();
+    let text = GOOD;
     let tight = text.replacen("distance = 3.0", "distance = 0.5", 1);
     assert_ne!(tight, text, "the shipped file's slot distance");
     let (code, err) = check_text("tight.toml", &tight);
@@ -723,11 +719,7 @@ fn help_links_and_readme_agree_with_the_program() {
 /// Rows wider than eight abreast are refused, naming the field.
 #[test]
 fn check_refuses_rows_too_wide() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../scenarios/paper-obstacles.toml"
-    ))
-    .unwrap();
+    let text = GOOD;
     let wide = text.replacen("shape = \"triangle\"", "shape = \"rows\"\nper_row = 9", 1);
     assert_ne!(wide, text, "the shipped file's shape");
     let (code, err) = check_text("wide.toml", &wide);

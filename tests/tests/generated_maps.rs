@@ -250,11 +250,8 @@ fn seven_follower_v_in_streets() {
 }
 
 /// `g` with its V in rows of three abreast.
-fn in_rows(mut g: Generated) -> Generated {
-    let v = "shape = \"v\"";
-    assert!(g.toml.contains(v), "{}: a V to put in rows", g.name);
-    g.toml = g.toml.replacen(v, "shape = \"rows\"\nper_row = 3", 1);
-    g
+fn in_rows(g: Generated) -> Generated {
+    g.in_rows(3).expect("a V to put in rows")
 }
 
 /// Not yet: the generator starts the fleet in a V, whose rear lies off these maps.

@@ -153,15 +153,11 @@ fn run(args: &Args, job: &Job) -> Result<Figures, String> {
     let world = args.out.join("worlds").join(format!("{name}.toml"));
     let report = args.out.join("reports").join(format!("{name}.json"));
     if !report.exists() {
-        let g = e2e::generate::open_lot(job.seed, job.followers);
-        let mut toml = g.toml.replacen(&g.name, &name, 1);
+        let mut g = e2e::generate::open_lot(job.seed, job.followers);
         if let Some(n) = args.rows {
-            let shape = ["shape = \"v\"", "shape = \"triangle\""]
-                .into_iter()
-                .find(|s| toml.contains(s))
-                .ok_or_else(|| format!("{name}: the generated lot names no V or triangle"))?;
-            toml = toml.replacen(shape, &format!("shape = \"rows\"\nper_row = {n}"), 1);
+            g = g.in_rows(n)?;
         }
+        let toml = g.toml.replacen(&g.name, &name, 1);
         let text = format!(
             "{}\n[link]\nradio = \"{}\"\naccess = \"{}\"\n",
             toml, job.preset, job.access

@@ -28,6 +28,18 @@ impl Generated {
         let _ = std::fs::write(&path, &self.toml);
         path
     }
+
+    /// The same world with its formation in rows of `per_row` abreast instead of its V
+    /// (or triangle).
+    pub fn in_rows(mut self, per_row: usize) -> Result<Self, String> {
+        let shape = ["shape = \"v\"", "shape = \"triangle\""]
+            .into_iter()
+            .find(|s| self.toml.contains(s))
+            .ok_or_else(|| format!("{}: names no V or triangle to put in rows", self.name))?;
+        let rows = format!("shape = \"rows\"\nper_row = {per_row}");
+        self.toml = self.toml.replacen(shape, &rows, 1);
+        Ok(self)
+    }
 }
 
 /// The seeds a suite runs: `count_var` of them (default `default_count`) from

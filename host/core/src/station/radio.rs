@@ -99,13 +99,16 @@ impl BaseStation {
     /// holding them evens out their arrival) has not had its `FormationCommand` since it
     /// linked, and gets its slots at the next step.
     fn check_told(&mut self, id: u16, pose_at_ms: u32) {
+        if !self.cfg.shared_channel || !self.fleet.followers.contains(&id) {
+            return;
+        }
         let told_ms = u32::from(self.cfg.report_every) * self.cfg.period_ms;
         let too_often = self
             .fleet
             .get(id)
             .filter(|s| s.telemetry.is_some())
             .is_some_and(|s| pose_at_ms.wrapping_sub(s.pose_at_ms) < told_ms / 2);
-        if self.cfg.shared_channel && too_often && self.fleet.followers.contains(&id) {
+        if too_often {
             self.slots_due_for(id);
         }
     }
